@@ -1,0 +1,46 @@
+# hosid developer targets. `make demo` and `make test` are the quick start.
+SHELL := /bin/bash
+.DEFAULT_GOAL := test
+
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+
+.PHONY: venv demo test test-slow bench analyses clean
+
+venv: $(STAMP)
+
+# Created once; re-installed whenever pyproject.toml changes.
+$(STAMP): pyproject.toml
+	@set -e; \
+	if [ ! -x $(PY) ]; then \
+		python=$$(tools/find-python.sh); \
+		echo "creating $(VENV) with $$python"; \
+		"$$python" -m venv $(VENV); \
+	fi; \
+	$(PY) -m pip install --upgrade --quiet pip; \
+	$(PY) -m pip install --quiet -e '.[test]'; \
+	touch $@
+
+demo: $(STAMP)
+	$(VENV)/bin/hosid demo --out demo-out
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+test-slow: $(STAMP)
+	$(PY) -m pytest -q -m slow
+
+bench: $(STAMP)
+	@if [ ! -d benchmarks ] || [ -z "$$(ls benchmarks/*.py 2>/dev/null)" ]; then \
+		echo "make bench: no benchmarks/*.py yet" >&2; exit 1; fi
+	$(PY) -m pytest -q --benchmark-only benchmarks
+
+analyses: $(STAMP)
+	@if [ ! -f analyses/run_all.py ]; then \
+		echo "make analyses: analyses/run_all.py does not exist yet" >&2; exit 1; fi
+	$(PY) analyses/run_all.py
+
+clean:
+	rm -rf $(VENV) demo-out analyses/out .pytest_cache .benchmarks build src/*.egg-info
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +

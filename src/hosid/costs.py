@@ -1,0 +1,313 @@
+r"""Cost functions J2, J4A, J4B (paper eqs 21/50, 34/59, 38/62-63) and well-scaled forms.
+
+Every cost takes ``theta`` of shape ``(..., 5)`` holding
+``(a1, n1, a2, n2, S0)`` and returns an array of shape ``theta.shape[:-1]``, so
+that grids, optimizers and emcee's ``vectorize=True`` share one code path.
+
+Notation: :math:`X_r(\omega;\lambda) = \sum_j \lambda_j Y_{jr}(\omega)` is the
+inferred force of block :math:`r` (eq 45),
+
+.. math::
+
+    \hat V^a(\omega) = \frac{1}{N}\sum_r \frac{|X_r(\omega)|^2}{2\pi T}, \qquad
+    \hat V^b(\omega_1,\omega_2,\omega_3) = \frac{1}{N}\sum_r
+        \frac{X_r(\omega_1)X_r(\omega_2)X_r(\omega_3)X_r^*(\omega_1+\omega_2+\omega_3)}{8\pi^3 T}
+
+(eqs 47, 57-58 with the :math:`1/T` applied once).  The literal costs are
+
+.. math::
+
+    J_2 = \sum_\omega (\hat V^a - k_2 S_0)^2 \quad (50), \qquad
+    J_4^A = \sum |\hat V^b - S_0^2 \Sigma\Delta_T|^2 \quad (59), \qquad
+    J_4^B = \sum |\hat V^c|^2 \quad (62),
+
+with :math:`\Sigma\Delta_T = \Delta_T(\omega_1+\omega_2)+\Delta_T(\omega_1+\omega_3)
++\Delta_T(\omega_2+\omega_3)` and :math:`\hat V^c = \hat V^b - k_2^{-2}[\hat V^a_1
+\hat V^a_3\Delta_T(\omega_1+\omega_2) + \hat V^a_3\hat V^a_2\Delta_T(\omega_1+\omega_3)
++ \hat V^a_1\hat V^a_2\Delta_T(\omega_2+\omega_3)]` (eq 63 corrected, cf. eq 36).
+
+The literal costs pull estimates toward a low force level, because the scatter of
+a block average grows with its level.  The *well-scaled* forms standardize every
+ordinate by its own sampling spread under the model.  With
+:math:`z_r(\omega) = X_r(\omega)/\sqrt{2\pi T s(\omega)}`, where
+:math:`s = k_2 S_0` (``"A"`` forms) or :math:`s = \hat V^a(\omega)` (``"B"`` forms,
+free of :math:`S_0`), the normalized trispectrum
+:math:`m = \overline{z_1 z_2 z_3 z_4^*}` has, for a Gaussian white force,
+mean :math:`g = \rho(k_1+k_2)^2+\rho(k_1+k_3)^2+\rho(k_2+k_3)^2` and per-block
+variance :math:`v` given exactly by Isserlis' theorem with the window's bin
+correlation :math:`\rho(k) = \frac{1}{M k_2}\sum_n D_n^2 e^{-2\pi i k n/M}`.
+Then
+
+.. math::
+
+    J_2^W = N\sum_\omega\Big(\frac{\hat V^a}{k_2 S_0}-1\Big)^2, \qquad
+    J_4^{W} = N\sum_{\rm domain}\frac{|m - g|^2}{v},
+
+each approximately a sum of squared standard normal deviates at the truth, so
+:math:`-J/2` is a pseudo-log-likelihood (issue: calibration of its scale is done
+in the Bayesian layer).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from functools import cached_property
+
+import numba
+import numpy as np
+
+from .spectra import BlockSpectra, TrispectralDomain, trispectral_domain
+
+__all__ = [
+    "COSTS",
+    "PARAM_NAMES",
+    "CostData",
+    "evaluate_cost",
+    "prepare",
+]
+
+PARAM_NAMES = ("a1", "n1", "a2", "n2", "S0")
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def _trispectrum(Xs, idx, out, out2):  # pragma: no cover - compiled
+    """out[p, t] = sum_r q_r and out2[p, t] = sum_r |q_r|^2 with
+    q_r = Xs[p,r,i1] Xs[p,r,i2] Xs[p,r,i3] conj(Xs[p,r,i4])."""
+    P, R, _ = Xs.shape
+    nt = idx.shape[0]
+    for t in numba.prange(nt):
+        i1, i2, i3, i4 = idx[t, 0], idx[t, 1], idx[t, 2], idx[t, 3]
+        for p in range(P):
+            acc = 0.0 + 0.0j
+            acc2 = 0.0
+            for r in range(R):
+                q = Xs[p, r, i1] * Xs[p, r, i2] * Xs[p, r, i3] * np.conj(Xs[p, r, i4])
+                acc += q
+                acc2 += q.real * q.real + q.imag * q.imag
+            out[p, t] = acc
+            out2[p, t] = acc2
+
+
+def _matchings(items):
+    """All perfect matchings of an even-length tuple (105 for 8 items)."""
+    if not items:
+        yield ()
+        return
+    a = items[0]
+    for i in range(1, len(items)):
+        rest = items[1:i] + items[i + 1 :]
+        for m in _matchings(rest):
+            yield ((a, items[i]),) + m
+
+
+_M8 = np.array(list(_matchings(tuple(range(8)))))  # (105, 4, 2)
+
+
+@dataclass(frozen=True)
+class CostData:
+    """Everything the costs need from a record, prepared once.
+
+    Build with :func:`prepare`.  ``Y`` holds the feature transforms on the signed
+    bins ``-k_max .. k_max`` (negative bins are complex conjugates).
+    """
+
+    spectra: BlockSpectra
+    domain: TrispectralDomain
+
+    @property
+    def N(self) -> int:
+        return self.spectra.n_blocks
+
+    @property
+    def T(self) -> float:
+        return self.spectra.T
+
+    @property
+    def k2(self) -> float:
+        return self.spectra.window.k2
+
+    @cached_property
+    def Ysigned(self) -> np.ndarray:
+        """(5, N, 2 K + 1) transforms on signed bins -K..K."""
+        K = self.spectra.k_max
+        Yp = self.spectra.Y[:, :, : K + 1]
+        return np.concatenate([np.conj(Yp[:, :, :0:-1]), Yp], axis=2)
+
+    @cached_property
+    def band_index(self) -> np.ndarray:
+        """Positions of the band bins in the signed layout."""
+        return self.spectra.band + self.spectra.k_max
+
+    @cached_property
+    def tri_index(self) -> np.ndarray:
+        """(n, 4) positions of k1, k2, k3, k4 in the signed layout."""
+        return np.ascontiguousarray(self.domain.k + self.spectra.k_max).astype(np.int64)
+
+    @cached_property
+    def rho(self):
+        """Window bin correlation rho(k) as a function of integer k (real, even)."""
+        s = self.spectra
+        F = np.fft.fft(s.window.samples(s.M) ** 2).real / s.M
+        return lambda k: F[np.asarray(k) % s.M] / s.window.k2
+
+    @cached_property
+    def null_mean(self) -> np.ndarray:
+        """Gaussian mean g of the normalized trispectrum on the domain."""
+        k = self.domain.k
+        r = self.rho
+        return r(k[:, 0] + k[:, 1]) ** 2 + r(k[:, 0] + k[:, 2]) ** 2 + r(k[:, 1] + k[:, 2]) ** 2
+
+    @cached_property
+    def null_var(self) -> np.ndarray:
+        """Per-block variance v of z1 z2 z3 z4* for a Gaussian white force (Isserlis)."""
+        k = self.domain.k
+        # signed bins of P = z(k1) z(k2) z(k3) z(-k4) and of conj(P)
+        s = np.stack([k[:, 0], k[:, 1], k[:, 2], -k[:, 3], -k[:, 0], -k[:, 1], -k[:, 2], k[:, 3]], 1)
+        r = self.rho
+        total = np.zeros(k.shape[0])
+        for m in _M8:
+            term = np.ones(k.shape[0])
+            for a, b in m:
+                term = term * r(s[:, a] + s[:, b])
+            total += term
+        return np.maximum(total - self.null_mean**2, 1e-12)
+
+    # ------------------------------------------------------------------ spectra
+    def inferred_force(self, theta: np.ndarray) -> np.ndarray:
+        """Eq (45): X_r(omega; lambda) on signed bins, shape (..., N, 2K+1)."""
+        lam = np.asarray(theta, dtype=float)[..., :4]
+        Y = self.Ysigned
+        return Y[0] + np.einsum("...j,jrk->...rk", lam, Y[1:])
+
+    def second_order(self, theta: np.ndarray, X: np.ndarray | None = None) -> np.ndarray:
+        """Eq (47)/(51): block-averaged Va on the band, shape (..., K_band)."""
+        X = self.inferred_force(theta) if X is None else X
+        Xb = X[..., self.band_index]
+        return np.mean(Xb.real**2 + Xb.imag**2, axis=-2) / (2 * np.pi * self.T)
+
+    def fourth_order(self, theta: np.ndarray, X: np.ndarray | None = None,
+                     second_moment: bool = False):
+        """Eq (57)-(58): block-averaged Vb on the domain, shape (..., n_domain).
+
+        With ``second_moment=True`` also the block mean of the squared modulus of
+        the per-block products (same scaling squared), for bias corrections."""
+        X = self.inferred_force(theta) if X is None else X
+        batch = X.shape[:-2]
+        Xs = np.ascontiguousarray(X.reshape((-1,) + X.shape[-2:]))
+        out = np.empty((Xs.shape[0], self.domain.size), dtype=complex)
+        out2 = np.empty((Xs.shape[0], self.domain.size))
+        _trispectrum(Xs, self.tri_index, out, out2)
+        scale = 8 * np.pi**3 * self.T
+        vb = (out / (self.N * scale)).reshape(batch + (self.domain.size,))
+        if not second_moment:
+            return vb
+        return vb, (out2 / (self.N * scale**2)).reshape(batch + (self.domain.size,))
+
+    def _va_signed(self, va: np.ndarray) -> np.ndarray:
+        """Map band Va onto the domain's four bins (|k| indexes the band)."""
+        kk = np.abs(self.domain.k) - self.spectra.k_min
+        return va[..., kk]  # (..., n, 4)
+
+
+def prepare(spectra: BlockSpectra, domain: str | TrispectralDomain = "principal") -> CostData:
+    """Bundle block spectra and a trispectral domain for the costs."""
+    if isinstance(domain, str):
+        domain = trispectral_domain(spectra, domain)
+    return CostData(spectra=spectra, domain=domain)
+
+
+def _theta(theta) -> np.ndarray:
+    th = np.asarray(theta, dtype=float)
+    if th.shape[-1] != 5:
+        raise ValueError(f"theta must have shape (..., 5) = (a1, n1, a2, n2, S0); got {th.shape}")
+    return th
+
+
+# ---------------------------------------------------------------------- literal costs
+def J2(theta, data: CostData) -> np.ndarray:
+    """Eq (50): sum over the band of (Va - k2 S0)^2."""
+    th = _theta(theta)
+    va = data.second_order(th)
+    return np.sum((va - data.k2 * th[..., 4:5]) ** 2, axis=-1)
+
+
+def J4A(theta, data: CostData) -> np.ndarray:
+    """Eq (34)/(59): sum over the domain of |Vb - S0^2 (sum of Delta_T)|^2."""
+    th = _theta(theta)
+    vb = data.fourth_order(th)
+    wb = th[..., 4:5] ** 2 * data.domain.gauss
+    return np.sum(np.abs(vb - wb) ** 2, axis=-1)
+
+
+def J4B(theta, data: CostData) -> np.ndarray:
+    """Eq (62)-(63): sum of |Vc|^2, Gaussian terms built from Va / k2^2 (no S0)."""
+    th = _theta(theta)
+    X = data.inferred_force(th)
+    va = data._va_signed(data.second_order(th, X))
+    vb = data.fourth_order(th, X)
+    d = data.domain.delta
+    g = (va[..., 0] * va[..., 2] * d[:, 0] + va[..., 2] * va[..., 1] * d[:, 1]
+         + va[..., 0] * va[..., 1] * d[:, 2])
+    return np.sum(np.abs(vb - g / data.k2**2) ** 2, axis=-1)
+
+
+# ---------------------------------------------------------------------- well-scaled costs
+def _unbiased_sq(mean, mean_sq, N):
+    r"""Unbiased estimate of :math:`|E h|^2` from the block mean of h and of |h|^2:
+    :math:`(N|\bar h|^2 - \overline{|h|^2})/(N-1)`.  Removing the :math:`r = s`
+    terms removes the sampling variance that otherwise rewards parameters whose
+    inferred force is less variable (the pull toward low force levels)."""
+    return (N * mean - mean_sq) / (N - 1)
+
+
+def J2W(theta, data: CostData) -> np.ndarray:
+    r"""Well-scaled J2: :math:`N\sum_\omega \widehat{|E h|^2}` with
+    :math:`h_r = |X_r|^2 / (2\pi T k_2 S_0) - 1`, each ordinate of unit variance."""
+    th = _theta(theta)
+    X = data.inferred_force(th)[..., data.band_index]
+    p = (X.real**2 + X.imag**2) / (2 * np.pi * data.T * data.k2 * th[..., None, 4:5])
+    h = p - 1.0
+    m, m2 = h.mean(axis=-2), (h**2).mean(axis=-2)
+    return data.N * np.sum(_unbiased_sq(m**2, m2, data.N), axis=-1)
+
+
+def _tri_standardized(th, data: CostData, own_level: bool) -> np.ndarray:
+    X = data.inferred_force(th)
+    vb, vb2 = data.fourth_order(th, X, second_moment=True)
+    if own_level:
+        s = data._va_signed(data.second_order(th, X))  # (..., n, 4)
+        norm = np.sqrt(np.prod(s, axis=-1))
+    else:
+        norm = (data.k2 * th[..., 4:5]) ** 2
+    # m = mean z1 z2 z3 z4*, z = X / sqrt(2 pi T s); h = z1 z2 z3 z4* - g
+    c = (8 * np.pi**3 * data.T) / ((2 * np.pi * data.T) ** 2 * norm)
+    g = data.null_mean
+    m = c * vb
+    mean_abs2 = np.abs(m - g) ** 2
+    mean_sq = c**2 * vb2 - 2 * g * m.real + g**2  # block mean of |h|^2
+    return data.N * np.sum(_unbiased_sq(mean_abs2, mean_sq, data.N) / data.null_var, axis=-1)
+
+
+def J4AW(theta, data: CostData) -> np.ndarray:
+    """Well-scaled J4A: trispectrum normalized by the model level k2 S0, each
+    ordinate standardized by its Gaussian sampling variance, variance-bias removed."""
+    return _tri_standardized(_theta(theta), data, own_level=False)
+
+
+def J4BW(theta, data: CostData) -> np.ndarray:
+    """Well-scaled J4B: as :func:`J4AW` but normalized by the inferred force's own
+    Va (free of S0)."""
+    return _tri_standardized(_theta(theta), data, own_level=True)
+
+
+COSTS = {"J2": J2, "J4A": J4A, "J4B": J4B, "J2W": J2W, "J4AW": J4AW, "J4BW": J4BW}
+
+
+def evaluate_cost(name: str, theta, data: CostData) -> np.ndarray:
+    """Evaluate a cost by name (one of :data:`COSTS`)."""
+    try:
+        f = COSTS[name]
+    except KeyError:
+        raise ValueError(f"unknown cost {name!r}: choose from {sorted(COSTS)}") from None
+    return f(theta, data)
