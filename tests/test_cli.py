@@ -35,11 +35,12 @@ def stub_core(monkeypatch):
     """STUB the numerical core with fakes, for plumbing tests only."""
     calls = Calls()
 
-    def fake_simulate(params, *, duration, dt, rng):
+    def fake_simulate(params, *, duration, dt, rng, return_velocity=False):
         calls.simulate.append({"params": params, "duration": duration, "dt": dt, "rng": rng})
-        return Record(rng.standard_normal(round(duration / dt)), dt)
+        rec = Record(rng.standard_normal(round(duration / dt)), dt)
+        return (rec, np.gradient(rec.x, dt)) if return_velocity else rec
 
-    def fake_estimate(record, *, method, window, block_seconds, omega_max):
+    def fake_estimate(record, *, method, window, block_seconds, omega_max, domain="principal", form="scaled"):
         calls.estimate.append(
             {
                 "record": record,
@@ -137,7 +138,7 @@ def test_estimate_defaults(stub_core, rec_file):
 def test_demo_writes_outputs(stub_core, tmp_path, capsys):
     out = tmp_path / "demo"
     assert cli.main(["demo", "--out", str(out), "--seed", "5"]) == 0
-    assert [c["method"] for c in stub_core.estimate] == ["paper", "moments", "J2"]
+    assert [c["method"] for c in stub_core.estimate] == list(cli.DEMO_METHODS)
     (call,) = stub_core.simulate
     assert call["params"] == cli.PAPER_PARAMS
     assert (call["duration"], call["dt"]) == (2000.0, 0.02)
@@ -146,9 +147,9 @@ def test_demo_writes_outputs(stub_core, tmp_path, capsys):
     assert data["seed"] == 5
     assert data["truth"]["a2"] == 25.0
     assert data["truth"]["a1eq"] > 0.5
-    assert set(data["results"]) == {"paper", "moments", "J2"}
+    assert set(data["results"]) == set(cli.DEMO_METHODS)
     report = (out / "report.md").read_text()
-    assert "| parameter | truth | paper | moments | J2 |" in report
+    assert "| parameter | truth | " + " | ".join(cli.DEMO_METHODS) + " |" in report
     assert "truth" in capsys.readouterr().out
 
 

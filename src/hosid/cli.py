@@ -27,7 +27,7 @@ PAPER_PARAMS: dict[str, float] = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "
 METHODS = ("moments", "J2", "J4A", "J4B", "paper")
 WINDOWS = ("hann", "boxcar")
 ESTIMATE_KEYS = ("a1", "n1", "a2", "n2", "S0", "a1eq")
-DEMO_METHODS = ("paper", "moments", "J2")
+DEMO_METHODS = ("moments", "J2", "paper", "J4A")
 EXIT_USAGE = 2
 
 
@@ -169,7 +169,8 @@ def _simulate(params: Mapping[str, float], duration: float, dt: float, seed: int
 
 
 def _estimate(
-    record: Record, method: str, window: str, block_seconds: float, omega_max: float
+    record: Record, method: str, window: str, block_seconds: float, omega_max: float,
+    domain: str = "principal", form: str = "scaled",
 ) -> dict[str, Any]:
     block_samples = round(block_seconds / record.dt)
     if block_samples < 2:
@@ -185,7 +186,8 @@ def _estimate(
     from hosid.estimators import estimate
 
     return estimate(
-        record, method=method, window=window, block_seconds=block_seconds, omega_max=omega_max
+        record, method=method, window=window, block_seconds=block_seconds, omega_max=omega_max,
+        domain=domain, form=form,
     )
 
 
@@ -204,7 +206,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 def _cmd_estimate(args: argparse.Namespace) -> int:
     record = read_record(args.record)
-    result = _estimate(record, args.method, args.window, args.block_seconds, args.omega_max)
+    result = _estimate(record, args.method, args.window, args.block_seconds, args.omega_max,
+                       args.domain, args.form)
     estimates = result.get("estimates", {})
     print(f"{record.name or args.record}: method {result.get('method', args.method)}")
     print(
@@ -215,14 +218,10 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _a1eq_truth(record: Record, params: Mapping[str, float]) -> float:
-    r"""Equivalent linear damping of the simulated record, eq (65).
-
-    :math:`a_{1,eq} = a_1 + n_1 \sqrt{8/\pi}\,\sigma_v`, with :math:`\sigma_v`
-    the standard deviation of the central-difference velocity of the record.
-    """
-    v = (record.x[2:] - record.x[:-2]) / (2 * record.dt)
-    return params["a1"] + params["n1"] * math.sqrt(8 / math.pi) * float(np.std(v))  # eq (65)
+def _a1eq_truth(params: Mapping[str, float], sigma_v: float) -> float:
+    r"""Equivalent linear damping of a simulated record, eq (65):
+    :math:`a_{1,eq} = a_1 + n_1 \sqrt{8/\pi}\,\sigma_v` with the simulated velocity's sd."""
+    return params["a1"] + params["n1"] * math.sqrt(8 / math.pi) * sigma_v  # eq (65)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -232,9 +231,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise HosidInputError(f"cannot create {out}: {exc.strerror or exc}") from None
     duration, dt = 2000.0, 0.02
-    record = _simulate(PAPER_PARAMS, duration, dt, args.seed)
+    from hosid.simulate import simulate
+
+    record, velocity = simulate(dict(PAPER_PARAMS), duration=duration, dt=dt,
+                                rng=np.random.default_rng(args.seed), return_velocity=True)
     write_record(record, out / "demo_record.csv")
-    truth = {**PAPER_PARAMS, "a1eq": _a1eq_truth(record, PAPER_PARAMS)}
+    truth = {**PAPER_PARAMS, "a1eq": _a1eq_truth(PAPER_PARAMS, float(np.std(velocity)))}
     settings = {"window": "hann", "block_seconds": 20.48, "omega_max": 8.0}
     results = {m: _estimate(record, m, **settings) for m in DEMO_METHODS}
 
@@ -331,6 +333,10 @@ def build_parser() -> argparse.ArgumentParser:
     est.add_argument(
         "--omega-max", type=_positive, default=8.0, help="highest frequency used, rad/s, default 8"
     )
+    est.add_argument("--domain", choices=("principal", "reduced", "full"), default="principal",
+                     help="trispectral domain: eq (39), eq (64) or all triples; default principal")
+    est.add_argument("--form", choices=("scaled", "literal"), default="scaled",
+                     help="well-scaled costs (default) or the paper's printed forms")
     est.add_argument("--json", metavar="FILE", help="also write the result as JSON")
     est.set_defaults(func=_cmd_estimate)
 
