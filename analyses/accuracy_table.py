@@ -42,8 +42,13 @@ def run(records: int, levels, windows, methods, duration: float, seed: int, out:
                 for method in methods:
                     t0 = time.perf_counter()
                     est = estimate(rec, method=method, window=window)["estimates"]
-                    row = {"S0_true": S0, "record": i, "window": window, "method": method,
-                           "seconds": time.perf_counter() - t0}
+                    row = {
+                        "S0_true": S0,
+                        "record": i,
+                        "window": window,
+                        "method": method,
+                        "seconds": time.perf_counter() - t0,
+                    }
                     for p in PARAMS:
                         row[p] = est[p]
                         row[p + "_true"] = tv[p]
@@ -58,10 +63,15 @@ def run(records: int, levels, windows, methods, duration: float, seed: int, out:
 
 
 def summarize(rows) -> str:
-    lines = ["| S0 | window | method | param | truth | median est | mean err | sd | "
-             "median abs rel err | s/fit |", "|" + "---|" * 10]
-    keys = sorted({(r["S0_true"], r["window"], r["method"]) for r in rows},
-                  key=lambda k: (k[0], k[1], ["moments", "J2", "paper", "J4A", "J4B"].index(k[2])))
+    lines = [
+        "| S0 | window | method | param | truth | median est | mean err | sd | "
+        "median abs rel err | s/fit |",
+        "|" + "---|" * 10,
+    ]
+    keys = sorted(
+        {(r["S0_true"], r["window"], r["method"]) for r in rows},
+        key=lambda k: (k[0], k[1], ["moments", "J2", "paper", "J4A", "J4B"].index(k[2])),
+    )
     for S0, window, method in keys:
         sel = [r for r in rows if (r["S0_true"], r["window"], r["method"]) == (S0, window, method)]
         secs = np.mean([r["seconds"] for r in sel])
@@ -74,7 +84,8 @@ def summarize(rows) -> str:
             lines.append(
                 f"| {S0:g} | {window} | {method} | {p} | {np.mean(tru):.3g} | "
                 f"{np.median(est):.3g} | {np.mean(err):+.3g} | {np.std(err, ddof=1):.3g} | "
-                f"{np.median(np.abs(err / tru)) * 100:.1f} % | {secs:.1f} |")
+                f"{np.median(np.abs(err / tru)) * 100:.1f} % | {secs:.1f} |"
+            )
     return "\n".join(lines) + "\n"
 
 

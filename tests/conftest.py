@@ -20,8 +20,13 @@ LINEAR_SEED = 20240602
 @pytest.fixture(scope="session")
 def paper_run():
     """Paper oscillator (S0 = 100), 2000 s at dt = 0.02: ``(record, simulated velocity)``."""
-    return simulate(PAPER_PARAMS, duration=2000.0, dt=0.02,
-                    rng=np.random.default_rng(PAPER_SEED), return_velocity=True)
+    return simulate(
+        PAPER_PARAMS,
+        duration=2000.0,
+        dt=0.02,
+        rng=np.random.default_rng(PAPER_SEED),
+        return_velocity=True,
+    )
 
 
 @pytest.fixture(scope="session")
@@ -37,8 +42,13 @@ def linear_params():
 @pytest.fixture(scope="session")
 def linear_run():
     """Linear oscillator, 4000 s at dt = 0.02 (195 blocks of 20.48 s)."""
-    return simulate(LINEAR_PARAMS, duration=4000.0, dt=0.02,
-                    rng=np.random.default_rng(LINEAR_SEED), return_velocity=True)
+    return simulate(
+        LINEAR_PARAMS,
+        duration=4000.0,
+        dt=0.02,
+        rng=np.random.default_rng(LINEAR_SEED),
+        return_velocity=True,
+    )
 
 
 @pytest.fixture(scope="session")

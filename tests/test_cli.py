@@ -40,7 +40,9 @@ def stub_core(monkeypatch):
         rec = Record(rng.standard_normal(round(duration / dt)), dt)
         return (rec, np.gradient(rec.x, dt)) if return_velocity else rec
 
-    def fake_estimate(record, *, method, window, block_seconds, omega_max, domain="principal", form="scaled"):
+    def fake_estimate(
+        record, *, method, window, block_seconds, omega_max, domain="principal", form="scaled"
+    ):
         calls.estimate.append(
             {
                 "record": record,

@@ -18,8 +18,9 @@ def _pooled(runs, which):
 
 @pytest.fixture(scope="module")
 def linear_ensemble():
-    return simulate_ensemble(LINEAR, 8, rng=np.random.default_rng(11), duration=500.0,
-                             return_velocity=True)
+    return simulate_ensemble(
+        LINEAR, 8, rng=np.random.default_rng(11), duration=500.0, return_velocity=True
+    )
 
 
 def test_linear_oscillator_displacement_variance(linear_ensemble):
@@ -44,8 +45,9 @@ def test_ensemble_records_are_independent_and_named(linear_ensemble):
 
 
 def test_energy_balance_paper_oscillator():
-    runs = simulate_ensemble(PAPER_PARAMS, 4, rng=np.random.default_rng(12), duration=500.0,
-                             return_velocity=True)
+    runs = simulate_ensemble(
+        PAPER_PARAMS, 4, rng=np.random.default_rng(12), duration=500.0, return_velocity=True
+    )
     v = np.concatenate([vv for _, vv in runs])
     a1, n1, S0 = PAPER_PARAMS["a1"], PAPER_PARAMS["n1"], PAPER_PARAMS["S0"]
     lhs = a1 * np.mean(v**2) + n1 * np.mean(np.abs(v) ** 3)
@@ -64,8 +66,9 @@ def test_same_seed_reproduces_record():
 
 
 def test_record_length_and_velocity_shape():
-    rec, v = simulate(PAPER_PARAMS, duration=10.0, dt=0.02, rng=np.random.default_rng(0),
-                      return_velocity=True)
+    rec, v = simulate(
+        PAPER_PARAMS, duration=10.0, dt=0.02, rng=np.random.default_rng(0), return_velocity=True
+    )
     assert rec.n == 500 and v.shape == (500,)
     assert rec.dt == 0.02
 
@@ -99,7 +102,8 @@ def test_coloured_excitation_linear_variance():
     exact = 2 * integrate.quad(integrand, 0.0, np.inf, points=None, limit=200)[0]
     white = np.pi * S0 / (a1 * a2)
     assert exact < white  # the low-pass removes force power
-    runs = simulate_ensemble(params, 8, rng=np.random.default_rng(13), duration=500.0,
-                             return_velocity=True)
+    runs = simulate_ensemble(
+        params, 8, rng=np.random.default_rng(13), duration=500.0, return_velocity=True
+    )
     # sampling sd ~2.2 % as for the white case (4000 s, 1 s decorrelation); 5 % ~ 2 sd
     assert _pooled(runs, "x") == pytest.approx(exact, rel=0.05)

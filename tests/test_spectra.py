@@ -35,14 +35,12 @@ def test_spectral_derivative_exact_when_end_points_agree():
     np.testing.assert_allclose(as_, a, atol=1e-8 * np.abs(a).max())
 
 
-@pytest.mark.xfail(strict=True, reason="derivatives() removes the line through x[0] and x[-1] "
-                   "even for a periodic signal, so 'exact for band-limited periodic signals' "
-                   "fails unless x[0] == x[-1] (see report)")
 def test_spectral_derivative_exact_for_general_periodic_signal():
     n, dt = 1000, 0.01
-    x, v, _ = _fourier_signal(n, dt, [3, 17, 40, 101], shift=0.123)
-    vs, _ = derivatives(x, dt)
+    x, v, a = _fourier_signal(n, dt, [3, 17, 40, 101], shift=0.123)
+    vs, as_ = derivatives(x, dt, detrend=False)
     np.testing.assert_allclose(vs, v, atol=1e-8 * np.abs(v).max())
+    np.testing.assert_allclose(as_, a, atol=1e-8 * np.abs(a).max())
 
 
 def test_spectral_velocity_variance_on_paper_record(paper_run):
@@ -131,8 +129,12 @@ def _brute_force_principal(lo, hi):
         k4 = k1 + k2 + k3
         if not lo <= abs(k4) <= hi:
             continue
-        if (k1 >= k2 >= k3 and k4 >= 0 and k1 + k2 + 2 * k3 >= 0
-                and sum(k < 0 for k in (k1, k2, k3)) == 1):
+        if (
+            k1 >= k2 >= k3
+            and k4 >= 0
+            and k1 + k2 + 2 * k3 >= 0
+            and sum(k < 0 for k in (k1, k2, k3)) == 1
+        ):
             rows.append((k1, k2, k3, k4))
     return sorted(rows)
 

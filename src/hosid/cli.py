@@ -169,8 +169,13 @@ def _simulate(params: Mapping[str, float], duration: float, dt: float, seed: int
 
 
 def _estimate(
-    record: Record, method: str, window: str, block_seconds: float, omega_max: float,
-    domain: str = "principal", form: str = "scaled",
+    record: Record,
+    method: str,
+    window: str,
+    block_seconds: float,
+    omega_max: float,
+    domain: str = "principal",
+    form: str = "scaled",
 ) -> dict[str, Any]:
     block_samples = round(block_seconds / record.dt)
     if block_samples < 2:
@@ -186,8 +191,13 @@ def _estimate(
     from hosid.estimators import estimate
 
     return estimate(
-        record, method=method, window=window, block_seconds=block_seconds, omega_max=omega_max,
-        domain=domain, form=form,
+        record,
+        method=method,
+        window=window,
+        block_seconds=block_seconds,
+        omega_max=omega_max,
+        domain=domain,
+        form=form,
     )
 
 
@@ -206,8 +216,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 def _cmd_estimate(args: argparse.Namespace) -> int:
     record = read_record(args.record)
-    result = _estimate(record, args.method, args.window, args.block_seconds, args.omega_max,
-                       args.domain, args.form)
+    result = _estimate(
+        record,
+        args.method,
+        args.window,
+        args.block_seconds,
+        args.omega_max,
+        args.domain,
+        args.form,
+    )
     estimates = result.get("estimates", {})
     print(f"{record.name or args.record}: method {result.get('method', args.method)}")
     print(
@@ -220,7 +237,8 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
 
 def _a1eq_truth(params: Mapping[str, float], sigma_v: float) -> float:
     r"""Equivalent linear damping of a simulated record, eq (65):
-    :math:`a_{1,eq} = a_1 + n_1 \sqrt{8/\pi}\,\sigma_v` with the simulated velocity's sd."""
+    :math:`a_{1,eq} = a_1 + n_1 \sqrt{8/\pi}\,\sigma_v` with the simulated velocity's sd.
+    """
     return params["a1"] + params["n1"] * math.sqrt(8 / math.pi) * sigma_v  # eq (65)
 
 
@@ -233,8 +251,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     duration, dt = 2000.0, 0.02
     from hosid.simulate import simulate
 
-    record, velocity = simulate(dict(PAPER_PARAMS), duration=duration, dt=dt,
-                                rng=np.random.default_rng(args.seed), return_velocity=True)
+    record, velocity = simulate(
+        dict(PAPER_PARAMS),
+        duration=duration,
+        dt=dt,
+        rng=np.random.default_rng(args.seed),
+        return_velocity=True,
+    )
     write_record(record, out / "demo_record.csv")
     truth = {**PAPER_PARAMS, "a1eq": _a1eq_truth(PAPER_PARAMS, float(np.std(velocity)))}
     settings = {"window": "hann", "block_seconds": 20.48, "omega_max": 8.0}
@@ -333,10 +356,18 @@ def build_parser() -> argparse.ArgumentParser:
     est.add_argument(
         "--omega-max", type=_positive, default=8.0, help="highest frequency used, rad/s, default 8"
     )
-    est.add_argument("--domain", choices=("principal", "reduced", "full"), default="principal",
-                     help="trispectral domain: eq (39), eq (64) or all triples; default principal")
-    est.add_argument("--form", choices=("scaled", "literal"), default="scaled",
-                     help="well-scaled costs (default) or the paper's printed forms")
+    est.add_argument(
+        "--domain",
+        choices=("principal", "reduced", "full"),
+        default="principal",
+        help="trispectral domain: eq (39), eq (64) or all triples; default principal",
+    )
+    est.add_argument(
+        "--form",
+        choices=("scaled", "literal"),
+        default="scaled",
+        help="well-scaled costs (default) or the paper's printed forms",
+    )
     est.add_argument("--json", metavar="FILE", help="also write the result as JSON")
     est.set_defaults(func=_cmd_estimate)
 

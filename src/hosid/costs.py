@@ -36,21 +36,26 @@ free of :math:`S_0`), the normalized trispectrum
 mean :math:`g = \rho(k_1+k_2)^2+\rho(k_1+k_3)^2+\rho(k_2+k_3)^2` and per-block
 variance :math:`v` given exactly by Isserlis' theorem with the window's bin
 correlation :math:`\rho(k) = \frac{1}{M k_2}\sum_n D_n^2 e^{-2\pi i k n/M}`.
-Then
+The sampling variance of a block mean also depends on the parameters (a force
+with lighter-tailed block products "fits" better), so the squared residuals are
+replaced by their unbiased (U-statistic) estimates,
+:math:`\widehat{|E h|^2} = (N|\bar h|^2 - \overline{|h|^2})/(N-1)`:
 
 .. math::
 
-    J_2^W = N\sum_\omega\Big(\frac{\hat V^a}{k_2 S_0}-1\Big)^2, \qquad
-    J_4^{W} = N\sum_{\rm domain}\frac{|m - g|^2}{v},
+    J_2^W = N\sum_\omega \widehat{|E h_\omega|^2},\; h = \frac{|X|^2}{2\pi T k_2 S_0}-1,
+    \qquad
+    J_4^{W} = N\sum_{\rm domain}\frac{\widehat{|E h_t|^2}}{v_t},\; h = z_1z_2z_3z_4^*-g.
 
-each approximately a sum of squared standard normal deviates at the truth, so
-:math:`-J/2` is a pseudo-log-likelihood (issue: calibration of its scale is done
-in the Bayesian layer).
+These are *centred*: at the truth their expectation is 0 (not the number of
+ordinates), with a spread of order the square root of that number; away from it
+they grow like :math:`N` times the squared standardized bias.  They are only
+meaningful near a sensible start (far from it the U-statistic rewards dispersed
+inferred forces), so the estimators search bounded regions.
 """
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -70,19 +75,32 @@ __all__ = [
 PARAM_NAMES = ("a1", "n1", "a2", "n2", "S0")
 
 
-@numba.njit(parallel=True, cache=True, fastmath=True)
-def _trispectrum(Xs, idx, out, out2):  # pragma: no cover - compiled
-    """out[p, t] = sum_r q_r and out2[p, t] = sum_r |q_r|^2 with
-    q_r = Xs[p,r,i1] Xs[p,r,i2] Xs[p,r,i3] conj(Xs[p,r,i4])."""
-    P, R, _ = Xs.shape
-    nt = idx.shape[0]
-    for t in numba.prange(nt):
-        i1, i2, i3, i4 = idx[t, 0], idx[t, 1], idx[t, 2], idx[t, 3]
-        for p in range(P):
+@numba.njit(parallel=True, cache=True)
+def _trispectrum(Xt, pa, pb, ta, tb, out, out2):  # pragma: no cover - compiled
+    """Block sums of q_r = X(k1) X(k2) X(k3) X*(k4) and of |q_r|^2.
+
+    ``Xt`` is (P, K, N) with the block index last (contiguous).  Each product is
+    split into the pair products A = X(k1) X*(k4) (``pa``) and B = X(k2) X(k3)
+    (``pb``), each formed once per distinct pair, so a triple costs one complex
+    multiply per block.
+    """
+    P, K, N = Xt.shape
+    na, nb, nt = pa.shape[0], pb.shape[0], ta.shape[0]
+    A = np.empty((na, N), dtype=np.complex128)
+    B = np.empty((nb, N), dtype=np.complex128)
+    for p in range(P):
+        for j in numba.prange(na):
+            for r in range(N):
+                A[j, r] = Xt[p, pa[j, 0], r] * np.conj(Xt[p, pa[j, 1], r])
+        for j in numba.prange(nb):
+            for r in range(N):
+                B[j, r] = Xt[p, pb[j, 0], r] * Xt[p, pb[j, 1], r]
+        for t in numba.prange(nt):
+            a, b = ta[t], tb[t]
             acc = 0.0 + 0.0j
             acc2 = 0.0
-            for r in range(R):
-                q = Xs[p, r, i1] * Xs[p, r, i2] * Xs[p, r, i3] * np.conj(Xs[p, r, i4])
+            for r in range(N):
+                q = A[a, r] * B[b, r]
                 acc += q
                 acc2 += q.real * q.real + q.imag * q.imag
             out[p, t] = acc
@@ -129,10 +147,33 @@ class CostData:
 
     @cached_property
     def Ysigned(self) -> np.ndarray:
-        """(5, N, 2 K + 1) transforms on signed bins -K..K."""
+        """(5, 2 K + 1, N) transforms on signed bins -K..K, block index last."""
         K = self.spectra.k_max
         Yp = self.spectra.Y[:, :, : K + 1]
-        return np.concatenate([np.conj(Yp[:, :, :0:-1]), Yp], axis=2)
+        Ys = np.concatenate([np.conj(Yp[:, :, :0:-1]), Yp], axis=2)
+        return np.ascontiguousarray(Ys.transpose(0, 2, 1))
+
+    @cached_property
+    def _band_Y(self) -> np.ndarray:
+        return np.ascontiguousarray(self.Ysigned[:, self.band_index, :])
+
+    def _Y_on(self, bins: tuple) -> np.ndarray:
+        if bins == tuple(self.band_index):
+            return self._band_Y
+        return self.Ysigned[:, list(bins), :]
+
+    @cached_property
+    def _pairs(self):
+        """Distinct pairs (k1, k4) and (k2, k3) of the domain and each triple's pair."""
+        idx = self.tri_index
+        pa, ta = np.unique(idx[:, [0, 3]], axis=0, return_inverse=True)
+        pb, tb = np.unique(idx[:, [1, 2]], axis=0, return_inverse=True)
+        return (
+            np.ascontiguousarray(pa),
+            np.ascontiguousarray(pb),
+            np.ascontiguousarray(ta.ravel()),
+            np.ascontiguousarray(tb.ravel()),
+        )
 
     @cached_property
     def band_index(self) -> np.ndarray:
@@ -163,7 +204,9 @@ class CostData:
         """Per-block variance v of z1 z2 z3 z4* for a Gaussian white force (Isserlis)."""
         k = self.domain.k
         # signed bins of P = z(k1) z(k2) z(k3) z(-k4) and of conj(P)
-        s = np.stack([k[:, 0], k[:, 1], k[:, 2], -k[:, 3], -k[:, 0], -k[:, 1], -k[:, 2], k[:, 3]], 1)
+        s = np.stack(
+            [k[:, 0], k[:, 1], k[:, 2], -k[:, 3], -k[:, 0], -k[:, 1], -k[:, 2], k[:, 3]], 1
+        )
         r = self.rho
         total = np.zeros(k.shape[0])
         for m in _M8:
@@ -174,30 +217,40 @@ class CostData:
         return np.maximum(total - self.null_mean**2, 1e-12)
 
     # ------------------------------------------------------------------ spectra
-    def inferred_force(self, theta: np.ndarray) -> np.ndarray:
-        """Eq (45): X_r(omega; lambda) on signed bins, shape (..., N, 2K+1)."""
-        lam = np.asarray(theta, dtype=float)[..., :4]
-        Y = self.Ysigned
-        return Y[0] + np.einsum("...j,jrk->...rk", lam, Y[1:])
+    def inferred_force(self, theta: np.ndarray, bins: np.ndarray | None = None) -> np.ndarray:
+        """Eq (45): X_r(omega; lambda) on signed bins, shape (..., 2K+1, N)
+        (or on the signed-layout positions ``bins`` only).
+        """
+        lam = np.asarray(theta, dtype=float)[..., :4, None, None]
+        Y = self.Ysigned if bins is None else self._Y_on(tuple(bins))
+        X = Y[0] + lam[..., 0, :, :] * Y[1]
+        for j in range(1, 4):
+            X = X + lam[..., j, :, :] * Y[j + 1]
+        return X
 
     def second_order(self, theta: np.ndarray, X: np.ndarray | None = None) -> np.ndarray:
         """Eq (47)/(51): block-averaged Va on the band, shape (..., K_band)."""
-        X = self.inferred_force(theta) if X is None else X
-        Xb = X[..., self.band_index]
-        return np.mean(Xb.real**2 + Xb.imag**2, axis=-2) / (2 * np.pi * self.T)
+        Xb = (
+            self.inferred_force(theta, self.band_index)
+            if X is None
+            else X[..., self.band_index, :]
+        )
+        return np.mean(Xb.real**2 + Xb.imag**2, axis=-1) / (2 * np.pi * self.T)
 
-    def fourth_order(self, theta: np.ndarray, X: np.ndarray | None = None,
-                     second_moment: bool = False):
+    def fourth_order(
+        self, theta: np.ndarray, X: np.ndarray | None = None, second_moment: bool = False
+    ):
         """Eq (57)-(58): block-averaged Vb on the domain, shape (..., n_domain).
 
         With ``second_moment=True`` also the block mean of the squared modulus of
-        the per-block products (same scaling squared), for bias corrections."""
+        the per-block products (same scaling squared), for bias corrections.
+        """
         X = self.inferred_force(theta) if X is None else X
         batch = X.shape[:-2]
         Xs = np.ascontiguousarray(X.reshape((-1,) + X.shape[-2:]))
         out = np.empty((Xs.shape[0], self.domain.size), dtype=complex)
         out2 = np.empty((Xs.shape[0], self.domain.size))
-        _trispectrum(Xs, self.tri_index, out, out2)
+        _trispectrum(Xs, *self._pairs, out, out2)
         scale = 8 * np.pi**3 * self.T
         vb = (out / (self.N * scale)).reshape(batch + (self.domain.size,))
         if not second_moment:
@@ -247,8 +300,11 @@ def J4B(theta, data: CostData) -> np.ndarray:
     va = data._va_signed(data.second_order(th, X))
     vb = data.fourth_order(th, X)
     d = data.domain.delta
-    g = (va[..., 0] * va[..., 2] * d[:, 0] + va[..., 2] * va[..., 1] * d[:, 1]
-         + va[..., 0] * va[..., 1] * d[:, 2])
+    g = (
+        va[..., 0] * va[..., 2] * d[:, 0]
+        + va[..., 2] * va[..., 1] * d[:, 1]
+        + va[..., 0] * va[..., 1] * d[:, 2]
+    )
     return np.sum(np.abs(vb - g / data.k2**2) ** 2, axis=-1)
 
 
@@ -257,18 +313,20 @@ def _unbiased_sq(mean, mean_sq, N):
     r"""Unbiased estimate of :math:`|E h|^2` from the block mean of h and of |h|^2:
     :math:`(N|\bar h|^2 - \overline{|h|^2})/(N-1)`.  Removing the :math:`r = s`
     terms removes the sampling variance that otherwise rewards parameters whose
-    inferred force is less variable (the pull toward low force levels)."""
+    inferred force is less variable (the pull toward low force levels).
+    """
     return (N * mean - mean_sq) / (N - 1)
 
 
 def J2W(theta, data: CostData) -> np.ndarray:
     r"""Well-scaled J2: :math:`N\sum_\omega \widehat{|E h|^2}` with
-    :math:`h_r = |X_r|^2 / (2\pi T k_2 S_0) - 1`, each ordinate of unit variance."""
+    :math:`h_r = |X_r|^2 / (2\pi T k_2 S_0) - 1`, each ordinate of unit variance.
+    """
     th = _theta(theta)
-    X = data.inferred_force(th)[..., data.band_index]
-    p = (X.real**2 + X.imag**2) / (2 * np.pi * data.T * data.k2 * th[..., None, 4:5])
+    X = data.inferred_force(th, data.band_index)
+    p = (X.real**2 + X.imag**2) / (2 * np.pi * data.T * data.k2 * th[..., 4:5, None])
     h = p - 1.0
-    m, m2 = h.mean(axis=-2), (h**2).mean(axis=-2)
+    m, m2 = h.mean(axis=-1), (h**2).mean(axis=-1)
     return data.N * np.sum(_unbiased_sq(m**2, m2, data.N), axis=-1)
 
 
@@ -291,13 +349,15 @@ def _tri_standardized(th, data: CostData, own_level: bool) -> np.ndarray:
 
 def J4AW(theta, data: CostData) -> np.ndarray:
     """Well-scaled J4A: trispectrum normalized by the model level k2 S0, each
-    ordinate standardized by its Gaussian sampling variance, variance-bias removed."""
+    ordinate standardized by its Gaussian sampling variance, variance-bias removed.
+    """
     return _tri_standardized(_theta(theta), data, own_level=False)
 
 
 def J4BW(theta, data: CostData) -> np.ndarray:
     """Well-scaled J4B: as :func:`J4AW` but normalized by the inferred force's own
-    Va (free of S0)."""
+    Va (free of S0).
+    """
     return _tri_standardized(_theta(theta), data, own_level=True)
 
 

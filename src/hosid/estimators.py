@@ -87,8 +87,13 @@ def velocity_tail(record: Record, derivative: str = "spectral") -> float:
     return float(2.0 * S0_hf / wN)
 
 
-def moments(record: Record, *, damping: tuple[float, float] | None = None,
-            derivative: str = "spectral", tail_correction: bool = True) -> dict:
+def moments(
+    record: Record,
+    *,
+    damping: tuple[float, float] | None = None,
+    derivative: str = "spectral",
+    tail_correction: bool = True,
+) -> dict:
     """Stiffness (a2, n2) from the two stationary moment identities (module doc).
 
     Parameters
@@ -112,8 +117,13 @@ def moments(record: Record, *, damping: tuple[float, float] | None = None,
         h = a1 * v + n1 * v * np.abs(v)
         b -= np.array([np.mean(x * h), np.mean(x**3 * h)])
     a2, n2 = np.linalg.solve(A, b)
-    return {"a2": float(a2), "n2": float(n2), "sigma_v": float(np.sqrt(np.mean(v2))),
-            "Ev2": float(np.mean(v2)), "Ev3": float(np.mean(np.abs(v) ** 3))}
+    return {
+        "a2": float(a2),
+        "n2": float(n2),
+        "sigma_v": float(np.sqrt(np.mean(v2))),
+        "Ev2": float(np.mean(v2)),
+        "Ev3": float(np.mean(np.abs(v) ** 3)),
+    }
 
 
 def energy_balance_S0(a1: float, n1: float, Ev2: float, Ev3: float) -> float:
@@ -129,8 +139,14 @@ def _cost_names(form: str) -> tuple[str, str, str]:
     raise HosidInputError(f"unknown cost form {form!r}: use 'scaled' or 'literal'")
 
 
-def fit_J2(data: C.CostData, *, sigma_v: float, stiffness: tuple[float, float] | None = None,
-           form: str = "scaled", x0: dict | None = None) -> dict:
+def fit_J2(
+    data: C.CostData,
+    *,
+    sigma_v: float,
+    stiffness: tuple[float, float] | None = None,
+    form: str = "scaled",
+    x0: dict | None = None,
+) -> dict:
     """Equivalent linear damping and S0 (and the stiffness unless given) by J2.
 
     J2 cannot split a1 from n1 (its valley runs along constant a1eq, eq 65), so the
@@ -152,25 +168,50 @@ def fit_J2(data: C.CostData, *, sigma_v: float, stiffness: tuple[float, float] |
 
     # global: a1eq grid with n1 = 0, S0 from the mean inferred-force level
     grid = np.linspace(0.05, 40.0, 160)
-    th = np.stack([grid, 0 * grid, np.full_like(grid, k0[0]), np.full_like(grid, k0[1]),
-                   np.ones_like(grid)], -1)
+    th = np.stack(
+        [grid, 0 * grid, np.full_like(grid, k0[0]), np.full_like(grid, k0[1]), np.ones_like(grid)],
+        -1,
+    )
     S0g = np.mean(data.second_order(th), axis=-1) / data.k2
-    P = np.column_stack([grid, 0 * grid, np.log(S0g)] + ([np.full_like(grid, k0[0]),
-                        np.full_like(grid, k0[1])] if free_k else []))
+    P = np.column_stack(
+        [grid, 0 * grid, np.log(S0g)]
+        + ([np.full_like(grid, k0[0]), np.full_like(grid, k0[1])] if free_k else [])
+    )
     best = P[np.argmin(j2(theta(P), data))]
     a1eq0 = best[0]
     bounds = [(0.0, a1eq0 * 2), (0.0, 2 * a1eq0 / c), (best[2] - 2, best[2] + 2)]
     if free_k:
         bounds += [(None, None), (None, None)]
-    res = optimize.minimize(lambda p: float(j2(theta(p), data)[0]), best, method="Powell",
-                            bounds=bounds, options={"xtol": 1e-6, "ftol": 1e-10, "maxfev": 20000})
+    res = optimize.minimize(
+        lambda p: float(j2(theta(p), data)[0]),
+        best,
+        method="Powell",
+        bounds=bounds,
+        options={"xtol": 1e-6, "ftol": 1e-10, "maxfev": 20000},
+    )
     t = theta(res.x)[0]
-    return {"a1": float(t[0]), "n1": float(t[1]), "a1eq": float(t[0] + t[1] * c),
-            "a2": float(t[2]), "n2": float(t[3]), "S0": float(t[4]), "cost": float(res.fun)}
+    return {
+        "a1": float(t[0]),
+        "n1": float(t[1]),
+        "a1eq": float(t[0] + t[1] * c),
+        "a2": float(t[2]),
+        "n2": float(t[3]),
+        "S0": float(t[4]),
+        "cost": float(res.fun),
+    }
 
 
-def fit_J4_line(data: C.CostData, *, a1eq: float, sigma_v: float, a2: float, n2: float,
-                S0: float, cost: str = "J4AW", n_grid: int = 81) -> dict:
+def fit_J4_line(
+    data: C.CostData,
+    *,
+    a1eq: float,
+    sigma_v: float,
+    a2: float,
+    n2: float,
+    S0: float,
+    cost: str = "J4AW",
+    n_grid: int = 81,
+) -> dict:
     """The paper's J4 step: minimize J4 along a1 + n1 sqrt(8/pi) sigma_v = a1eq, n1 >= 0, a1 >= 0.
 
     A grid over the whole admissible segment (global: J4 has valleys and twin
@@ -183,21 +224,34 @@ def fit_J4_line(data: C.CostData, *, a1eq: float, sigma_v: float, a2: float, n2:
     def theta(n1):
         n1 = np.atleast_1d(n1)
         a1 = a1eq - n1 * c
-        return np.stack([a1, n1, np.full_like(n1, a2), np.full_like(n1, n2), np.full_like(n1, S0)], -1)
+        return np.stack(
+            [a1, n1, np.full_like(n1, a2), np.full_like(n1, n2), np.full_like(n1, S0)], -1
+        )
 
     grid = np.linspace(0.0, n1_max, n_grid)
     vals = f(theta(grid), data)
     i = int(np.argmin(vals))
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, n_grid - 1)]
-    res = optimize.minimize_scalar(lambda n: float(f(theta(n), data)[0]), bounds=(lo, hi),
-                                   method="bounded", options={"xatol": 1e-5})
+    res = optimize.minimize_scalar(
+        lambda n: float(f(theta(n), data)[0]),
+        bounds=(lo, hi),
+        method="bounded",
+        options={"xatol": 1e-5},
+    )
     n1 = float(res.x)
-    return {"a1": float(a1eq - n1 * c), "n1": n1, "cost": float(res.fun),
-            "profile": (grid, vals)}
+    return {"a1": float(a1eq - n1 * c), "n1": n1, "cost": float(res.fun), "profile": (grid, vals)}
 
 
-def fit_J4_joint(data: C.CostData, start: dict, *, sigma_v: float, cost: str = "J4AW",
-                 with_J2: str | None = "J2W", fix_S0: bool = False, n_starts: int = 7) -> dict:
+def fit_J4_joint(
+    data: C.CostData,
+    start: dict,
+    *,
+    sigma_v: float,
+    cost: str = "J4AW",
+    with_J2: str | None = "J2W",
+    fix_S0: bool = False,
+    n_starts: int = 7,
+) -> dict:
     """Joint fit of the damping (and S0) by J4, plus J2 when ``with_J2`` (eq 15).
 
     The stiffness is held at ``start`` (moments are far more accurate for it than
@@ -215,8 +269,15 @@ def fit_J4_joint(data: C.CostData, start: dict, *, sigma_v: float, cost: str = "
     def theta(p):
         p = np.atleast_2d(p)
         s0 = np.full(p.shape[0], start["S0"]) if fix_S0 else np.exp(p[:, 2])
-        return np.column_stack([p[:, 0], p[:, 1], np.full(p.shape[0], start["a2"]),
-                                np.full(p.shape[0], start["n2"]), s0])
+        return np.column_stack(
+            [
+                p[:, 0],
+                p[:, 1],
+                np.full(p.shape[0], start["a2"]),
+                np.full(p.shape[0], start["n2"]),
+                s0,
+            ]
+        )
 
     def J(p):
         th = theta(p)
@@ -229,17 +290,31 @@ def fit_J4_joint(data: C.CostData, start: dict, *, sigma_v: float, cost: str = "
     best = None
     for n1 in np.linspace(0.0, a1eq / c, n_starts):
         p0 = [max(a1eq - n1 * c, 0.0), n1] + ([] if fix_S0 else [logS0])
-        res = optimize.minimize(J, p0, method="Powell", bounds=bounds,
-                                options={"xtol": 1e-4, "ftol": 1e-8, "maxfev": 2000})
+        res = optimize.minimize(
+            J,
+            p0,
+            method="Powell",
+            bounds=bounds,
+            options={"xtol": 1e-4, "ftol": 1e-8, "maxfev": 2000},
+        )
         if best is None or res.fun < best.fun:
             best = res
     th = theta(best.x)[0]
     return dict(zip(C.PARAM_NAMES, map(float, th)), cost=float(best.fun))
 
 
-def estimate(record: Record, *, method: str = "paper", window: str = "hann",
-             block_seconds: float = 20.48, omega_max: float = 8.0, domain: str = "principal",
-             form: str = "scaled", derivative: str = "spectral", refine: bool = True) -> dict:
+def estimate(
+    record: Record,
+    *,
+    method: str = "paper",
+    window: str = "hann",
+    block_seconds: float = 20.48,
+    omega_max: float = 8.0,
+    domain: str = "principal",
+    form: str = "scaled",
+    derivative: str = "spectral",
+    refine: bool = True,
+) -> dict:
     """Estimate the oscillator's parameters from a displacement record.
 
     Parameters
@@ -273,8 +348,13 @@ def estimate(record: Record, *, method: str = "paper", window: str = "hann",
     if method == "moments":
         est.update(a2=mom["a2"], n2=mom["n2"])
         return out
-    sp = block_spectra(record, window=window, block_seconds=block_seconds, omega_max=omega_max,
-                       derivative=derivative)
+    sp = block_spectra(
+        record,
+        window=window,
+        block_seconds=block_seconds,
+        omega_max=omega_max,
+        derivative=derivative,
+    )
     data = C.prepare(sp, domain)
     j2name, j4a, j4b = _cost_names(form)
     sv = mom["sigma_v"]
@@ -285,10 +365,12 @@ def estimate(record: Record, *, method: str = "paper", window: str = "hann",
     j4 = j4b if method == "J4B" else j4a
     for _ in range(2 if refine else 1):
         r2 = fit_J2(data, sigma_v=sv, stiffness=(mom["a2"], mom["n2"]), form=form)
-        line = fit_J4_line(data, a1eq=r2["a1eq"], sigma_v=sv, a2=mom["a2"], n2=mom["n2"],
-                           S0=r2["S0"], cost=j4)
-        est.update(a1=line["a1"], n1=line["n1"], a2=mom["a2"], n2=mom["n2"], S0=r2["S0"],
-                   a1eq=r2["a1eq"])
+        line = fit_J4_line(
+            data, a1eq=r2["a1eq"], sigma_v=sv, a2=mom["a2"], n2=mom["n2"], S0=r2["S0"], cost=j4
+        )
+        est.update(
+            a1=line["a1"], n1=line["n1"], a2=mom["a2"], n2=mom["n2"], S0=r2["S0"], a1eq=r2["a1eq"]
+        )
         mom = moments(record, damping=(line["a1"], line["n1"]), derivative=derivative)
     if method == "paper":
         return out

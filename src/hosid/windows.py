@@ -54,7 +54,8 @@ def _cosc_term(omega_shift: np.ndarray) -> np.ndarray:
 
 def hann_delta_xy(Omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     r"""Appendix B: :math:`X = \int_0^{2\pi}(1-\cos u)^2\cos\Omega u\,du` and the sine
-    analogue :math:`Y` (eq B1-B3)."""
+    analogue :math:`Y` (eq B1-B3).
+    """
     W = np.asarray(Omega, dtype=float)
     X = 1.5 * _sinc_term(W) - _sinc_term(W + 1) - _sinc_term(W - 1)
     X = X + 0.25 * (_sinc_term(W + 2) + _sinc_term(W - 2))
@@ -85,18 +86,18 @@ class Window:
     @property
     def k2(self) -> float:
         """Eq (20): mean of ``D^2``."""
-        if self.name == "boxcar":
+        if self.func is _boxcar:
             return 1.0
-        if self.name == "hann":
+        if self.func is _hann:
             return 3.0 / 8.0
         return float(np.mean(self.samples(1 << 16) ** 2))
 
     @property
     def k4(self) -> float:
         """Eq (A6): mean of ``D^4``."""
-        if self.name == "boxcar":
+        if self.func is _boxcar:
             return 1.0
-        if self.name == "hann":
+        if self.func is _hann:
             return 35.0 / 128.0
         return float(np.mean(self.samples(1 << 16) ** 4))
 
@@ -108,9 +109,9 @@ class Window:
         """
         omega = np.asarray(omega, dtype=float)
         Omega = omega * T / (2.0 * np.pi)  # eq (27)
-        if self.name == "boxcar":
+        if self.func is _boxcar:
             return T / (2.0 * np.pi) * np.sinc(Omega) ** 2  # eq (26); np.sinc(x)=sin(pi x)/(pi x)
-        if self.name == "hann":
+        if self.func is _hann:
             X, Y = hann_delta_xy(Omega)
             return T / (128.0 * np.pi**3) * (X**2 + Y**2)  # eq (29)
         u = np.linspace(0.0, 1.0, 4097)
@@ -122,7 +123,8 @@ class Window:
     def delta_T_bins(self, k: np.ndarray, m: int, T: float) -> np.ndarray:
         r""":math:`\Delta_T` at integer bin offsets ``k`` (``omega = 2 pi k / T``),
         from the discrete window on ``m`` samples, exactly as the block FFTs see it:
-        :math:`\frac{T}{2\pi}|\frac{1}{m}\sum_n D_n^2 e^{-2\pi i k n/m}|^2`."""
+        :math:`\frac{T}{2\pi}|\frac{1}{m}\sum_n D_n^2 e^{-2\pi i k n/m}|^2`.
+        """
         d2 = self.samples(m) ** 2
         F = np.fft.fft(d2) / m
         return T / (2.0 * np.pi) * np.abs(F[np.asarray(k) % m]) ** 2
@@ -138,7 +140,8 @@ def _hann(u):
 
 def get_window(window: str | Window | Callable) -> Window:
     """Return a :class:`Window` from a name (``"boxcar"``, ``"hann"``), a
-    :class:`Window` or a callable ``D(u)`` on ``u in [0, 1)``."""
+    :class:`Window` or a callable ``D(u)`` on ``u in [0, 1)``.
+    """
     if isinstance(window, Window):
         return window
     if isinstance(window, str):
