@@ -6,7 +6,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv demo test test-slow bench analyses clean
+.PHONY: venv demo test lint test-slow bench analyses clean
 
 venv: $(STAMP)
 
@@ -26,7 +26,12 @@ demo: $(STAMP)
 	$(VENV)/bin/hosid demo --out demo-out
 
 test: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks analyses
 	$(PY) -m pytest -q
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks analyses
+	$(VENV)/bin/ruff format --check src tests benchmarks analyses
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow

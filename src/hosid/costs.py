@@ -84,7 +84,7 @@ def _trispectrum(Xt, pa, pb, ta, tb, out, out2):  # pragma: no cover - compiled
     (``pb``), each formed once per distinct pair, so a triple costs one complex
     multiply per block.
     """
-    P, K, N = Xt.shape
+    P, _K, N = Xt.shape
     na, nb, nt = pa.shape[0], pb.shape[0], ta.shape[0]
     A = np.empty((na, N), dtype=np.complex128)
     B = np.empty((nb, N), dtype=np.complex128)
@@ -116,7 +116,7 @@ def _matchings(items):
     for i in range(1, len(items)):
         rest = items[1:i] + items[i + 1 :]
         for m in _matchings(rest):
-            yield ((a, items[i]),) + m
+            yield ((a, items[i]), *m)
 
 
 _M8 = np.array(list(_matchings(tuple(range(8)))))  # (105, 4, 2)
@@ -135,14 +135,17 @@ class CostData:
 
     @property
     def N(self) -> int:
+        """Number of blocks."""
         return self.spectra.n_blocks
 
     @property
     def T(self) -> float:
+        """Block length (s)."""
         return self.spectra.T
 
     @property
     def k2(self) -> float:
+        """Window constant k2 (eq 20)."""
         return self.spectra.window.k2
 
     @cached_property
@@ -247,15 +250,15 @@ class CostData:
         """
         X = self.inferred_force(theta) if X is None else X
         batch = X.shape[:-2]
-        Xs = np.ascontiguousarray(X.reshape((-1,) + X.shape[-2:]))
+        Xs = np.ascontiguousarray(X.reshape((-1, *X.shape[-2:])))
         out = np.empty((Xs.shape[0], self.domain.size), dtype=complex)
         out2 = np.empty((Xs.shape[0], self.domain.size))
         _trispectrum(Xs, *self._pairs, out, out2)
         scale = 8 * np.pi**3 * self.T
-        vb = (out / (self.N * scale)).reshape(batch + (self.domain.size,))
+        vb = (out / (self.N * scale)).reshape((*batch, self.domain.size))
         if not second_moment:
             return vb
-        return vb, (out2 / (self.N * scale**2)).reshape(batch + (self.domain.size,))
+        return vb, (out2 / (self.N * scale**2)).reshape((*batch, self.domain.size))
 
     def _va_signed(self, va: np.ndarray) -> np.ndarray:
         """Map band Va onto the domain's four bins (|k| indexes the band)."""

@@ -60,6 +60,7 @@ class Settings:
     derivative: str = "spectral"
 
     def as_dict(self) -> dict:
+        """Settings as a plain dict (for JSON)."""
         return dict(self.__dict__)
 
 
@@ -300,7 +301,7 @@ def fit_J4_joint(
         if best is None or res.fun < best.fun:
             best = res
     th = theta(best.x)[0]
-    return dict(zip(C.PARAM_NAMES, map(float, th)), cost=float(best.fun))
+    return dict(zip(C.PARAM_NAMES, map(float, th), strict=False), cost=float(best.fun))
 
 
 def estimate(

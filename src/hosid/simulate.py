@@ -160,8 +160,8 @@ def simulate(
         raise ValueError("substeps must be >= 1")
     c = _coefficients(params)
     wc = float(params.get("wc", 0.0) or 0.0)
-    n_out = int(round(duration / dt))
-    burn = int(round(burn_in / dt))
+    n_out = round(duration / dt)
+    burn = round(burn_in / dt)
     sub = int(substeps)
     h = dt / sub
     w = rng.standard_normal((burn + n_out) * sub)

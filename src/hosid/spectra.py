@@ -118,10 +118,12 @@ class BlockSpectra:
 
     @property
     def n_blocks(self) -> int:
+        """Number of blocks N."""
         return self.Y.shape[1]
 
     @property
     def d_omega(self) -> float:
+        """Bin spacing 2 pi / T (rad/s)."""
         return 2.0 * np.pi / self.T
 
     @property
@@ -154,13 +156,13 @@ def block_spectra(
     k_store: int | None = None,
     min_blocks: int = 8,
 ) -> BlockSpectra:
-    """Cut the record into blocks and take the windowed FFT of every feature.
+    r"""Cut the record into blocks and take the windowed FFT of every feature.
 
     Bins up to ``3 * k_max`` are stored so that :math:`\\omega_1+\\omega_2+\\omega_3`
     is available on any trispectral domain.
     """
     win = get_window(window)
-    M = int(round(block_seconds / record.dt))
+    M = round(block_seconds / record.dt)
     if M < 16:
         raise HosidInputError(
             f"blocks of {block_seconds} s hold only {M} samples; use longer blocks"
@@ -203,15 +205,17 @@ class TrispectralDomain:
 
     @property
     def size(self) -> int:
+        """Number of triples."""
         return self.k.shape[0]
 
     @property
     def gauss(self) -> np.ndarray:
+        """Sum of the three Delta_T factors (eq 59)."""
         return self.delta.sum(axis=1)
 
 
 def trispectral_domain(spectra: BlockSpectra, kind: str = "principal") -> TrispectralDomain:
-    """Frequency triples for the fourth-order costs.
+    r"""Frequency triples for the fourth-order costs.
 
     ``"principal"``: eq (39) — :math:`\\omega_1\\ge\\omega_2\\ge\\omega_3`,
     :math:`\\omega_1+\\omega_2+\\omega_3\\ge 0`, :math:`\\omega_1+\\omega_2+2\\omega_3\\ge 0`,
