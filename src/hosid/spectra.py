@@ -21,7 +21,7 @@ the periodic extension is continuous); see :func:`derivatives`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -113,8 +113,6 @@ class BlockSpectra:
     window: Window
     k_max: int
     k_min: int = 1
-    sigma_v: float = float("nan")
-    moments: dict = field(default_factory=dict)
 
     @property
     def n_blocks(self) -> int:
@@ -184,10 +182,7 @@ def block_spectra(
     blocks = F[:, : N * M].reshape(5, N, M) * win.samples(M)
     K = min(M // 2 + 1, k_store or 3 * k_max + 1)
     Y = np.fft.rfft(blocks, axis=-1)[:, :, :K] * record.dt
-    v = F[1]
-    return BlockSpectra(
-        Y=Y, T=T, dt=record.dt, M=M, window=win, k_max=k_max, k_min=k_min, sigma_v=float(np.std(v))
-    )
+    return BlockSpectra(Y=Y, T=T, dt=record.dt, M=M, window=win, k_max=k_max, k_min=k_min)
 
 
 @dataclass(frozen=True)
