@@ -94,6 +94,8 @@ def moments(
     damping: tuple[float, float] | None = None,
     derivative: str = "spectral",
     tail_correction: bool = True,
+    velocity: np.ndarray | None = None,
+    tail: float | None = None,
 ) -> dict:
     """Stiffness (a2, n2) from the two stationary moment identities (module doc).
 
@@ -105,10 +107,14 @@ def moments(
         not even in the velocity) and bias a2 by about -5 % at S0 = 100 if dropped.
     tail_correction : bool
         Add the velocity variance lost above Nyquist (:func:`velocity_tail`).
+    velocity, tail : optional
+        The record's velocity and tail variance when already computed (the
+        protocol calls this function repeatedly on the same record).
     """
     x = record.x - np.mean(record.x)
-    v, _ = derivatives(x, record.dt, derivative)
-    tail = velocity_tail(record, derivative) if tail_correction else 0.0
+    v = derivatives(x, record.dt, derivative)[0] if velocity is None else velocity
+    if tail is None:
+        tail = velocity_tail(record, derivative) if tail_correction else 0.0
     v2 = v**2 + tail
     m2, m4, m6 = (np.mean(x**p) for p in (2, 4, 6))
     A = np.array([[m2, m4], [m4, m6]])
@@ -344,7 +350,9 @@ def estimate(
     settings = Settings(window, float(block_seconds), float(omega_max), domain, form, derivative)
     nan = float("nan")
     est = dict.fromkeys(("a1", "n1", "a2", "n2", "S0", "a1eq"), nan)
-    mom = moments(record, derivative=derivative)
+    v = derivatives(record.x - np.mean(record.x), record.dt, derivative)[0]
+    tail = velocity_tail(record, derivative)
+    mom = moments(record, derivative=derivative, velocity=v, tail=tail)
     out = {"method": method, "estimates": est, "settings": settings.as_dict()}
     if method == "moments":
         est.update(a2=mom["a2"], n2=mom["n2"])
@@ -372,7 +380,7 @@ def estimate(
         est.update(
             a1=line["a1"], n1=line["n1"], a2=mom["a2"], n2=mom["n2"], S0=r2["S0"], a1eq=r2["a1eq"]
         )
-        mom = moments(record, damping=(line["a1"], line["n1"]), derivative=derivative)
+        mom = moments(record, damping=(line["a1"], line["n1"]), velocity=v, tail=tail)
     if method == "paper":
         return out
     if method == "J4B":
