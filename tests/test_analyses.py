@@ -75,3 +75,19 @@ def test_accuracy_study_paper_targets(tmp_path):
     assert med_rel("n2") < 0.10
     assert med_rel("S0") < 0.10
     assert med_rel("a1eq") < 0.10
+
+
+@pytest.mark.slow
+def test_coverage_study_runs_on_tiny_settings(tmp_path):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "coverage_study", Path(__file__).parents[1] / "analyses" / "coverage_study.py"
+    )
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    md = mod.run(1, cost="J4A", S0=100.0, duration=600.0, seed=3, out=tmp_path, n_steps=40,
+                 n_bootstrap=3)
+    text = md.read_text()
+    assert "| a1 |" in text and "90 % coverage" in text
+    assert (tmp_path / "coverage_J4A.csv").is_file()

@@ -1,4 +1,4 @@
-"""Command line interface: ``hosid simulate``, ``hosid estimate``, ``hosid demo``.
+"""Command line interface: ``hosid simulate``, ``estimate``, ``demo``, ``fit``, ``report``.
 
 Bad input of any kind ends with exactly one line ``hosid: error: <message>``
 on stderr and exit code 2, without a traceback.
@@ -28,6 +28,9 @@ METHODS = ("moments", "J2", "J4A", "J4B", "paper")
 WINDOWS = ("hann", "boxcar")
 ESTIMATE_KEYS = ("a1", "n1", "a2", "n2", "S0", "a1eq")
 DEMO_METHODS = ("moments", "J2", "paper", "J4A")
+FIT_COSTS = ("J2", "J4A", "J4B")
+#: Columns of the summary table ``hosid fit`` prints.
+FIT_COLUMNS = ("mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk")
 EXIT_USAGE = 2
 
 
@@ -77,6 +80,16 @@ def _seed(text: str) -> int:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be non-negative, got {text!r}")
+    return value
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text!r}")
     return value
 
 
@@ -168,15 +181,8 @@ def _simulate(params: Mapping[str, float], duration: float, dt: float, seed: int
     return simulate(dict(params), duration=duration, dt=dt, rng=rng)
 
 
-def _estimate(
-    record: Record,
-    method: str,
-    window: str,
-    block_seconds: float,
-    omega_max: float,
-    domain: str = "principal",
-    form: str = "scaled",
-) -> dict[str, Any]:
+def _check_spectral(record: Record, block_seconds: float, omega_max: float) -> None:
+    """Reject blocks shorter than two samples, too few blocks, or a band past Nyquist."""
     block_samples = round(block_seconds / record.dt)
     if block_samples < 2:
         raise HosidInputError(
@@ -188,6 +194,18 @@ def _estimate(
         raise HosidInputError(
             f"omega-max {omega_max:g} rad/s exceeds the Nyquist frequency {nyquist:.4g} rad/s"
         )
+
+
+def _estimate(
+    record: Record,
+    method: str,
+    window: str,
+    block_seconds: float,
+    omega_max: float,
+    domain: str = "principal",
+    form: str = "scaled",
+) -> dict[str, Any]:
+    _check_spectral(record, block_seconds, omega_max)
     from hosid.estimators import estimate
 
     return estimate(
@@ -298,10 +316,192 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise HosidInputError(f"cannot write {out / 'report.md'}: {exc.strerror or exc}") from None
     print(f"wrote {out}/demo_record.csv, {out}/estimates.json, {out}/report.md")
+
+    # the Bayesian fit of the same record: posterior, corner plot, HTML report
+    from hosid import results as _results
+
+    print("sampling the J4A pseudo-posterior (calibration, then emcee) ...")
+    tree = _run_fit(
+        record, cost="J4A", form="scaled", constrained=True, n_walkers=16, n_steps=None,
+        seed=args.seed, progress=True, backend=None, window="hann", block_seconds=20.48,
+        omega_max=8.0, domain="principal", truths=dict(PAPER_PARAMS),
+    )
+    fit_dir = out / "fit"
+    fit_dir.mkdir(parents=True, exist_ok=True)
+    _results.save(tree, fit_dir / "posterior.nc")
+    paths = _write_fit_report(tree, fit_dir)
+    _print_summary(_results.summarize(tree, warn=False))
+    print("wrote " + ", ".join(str(p) for p in [fit_dir / "posterior.nc", *paths]))
+    return 0
+
+
+def _read_truths(path: Path) -> dict[str, float]:
+    """Parameter values from a JSON object such as ``{"a1": 0.5, "n1": 0.5}``."""
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise HosidInputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise HosidInputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise HosidInputError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict) or not data:
+        raise HosidInputError(f"{path}: truths must be a JSON object of parameter values")
+    truths = {}
+    for key, value in data.items():
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise HosidInputError(f"{path}: truth {key!r} must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise HosidInputError(f"{path}: truth {key!r} must be finite, got {value!r}")
+        truths[key] = float(value)
+    return truths
+
+
+def _sidecar_truths(record_path: Path) -> Path | None:
+    """``REC.truths.json`` next to a record (``rec.truths.json`` or ``rec.csv.truths.json``)."""
+    for path in (
+        record_path.with_suffix(".truths.json"),
+        record_path.with_name(record_path.name + ".truths.json"),
+    ):
+        if path.is_file():
+            return path
+    return None
+
+
+def _make_dir(path: Path) -> None:
+    if path.exists() and not path.is_dir():
+        raise HosidInputError(f"{path}: exists and is not a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise HosidInputError(f"cannot create {path}: {exc.strerror or exc}") from None
+
+
+def _run_fit(record: Record, **options: Any) -> Any:
+    """``hosid.sampling.fit``, imported only when a fit is run."""
+    try:
+        from hosid import sampling
+    except ModuleNotFoundError as exc:
+        if exc.name != "hosid.sampling":
+            raise
+        raise HosidInputError("fitting needs hosid.sampling, which is missing") from None
+    return sampling.fit(record, **options)
+
+
+def _write_fit_report(tree: Any, out: Path) -> list[Path]:
+    """Write the report of a fit into ``out``; return the fit's paths, ``posterior.nc`` first."""
+    from hosid.report import FIGURES, write_report
+
+    html_path = write_report(tree, out)
+    return [
+        out / "posterior.nc",
+        html_path,
+        out / "summary.json",
+        *(out / f"{stem}.png" for stem, _, _ in FIGURES),
+    ]
+
+
+def _print_summary(summary: Mapping[str, Any]) -> None:
+    kind = "constrained" if summary.get("constrained") else "unconstrained"
+    seconds = summary.get("fit_seconds")
+    timing = f", {_fmt(seconds)} s" if seconds is not None else ""
+    print(
+        f"{summary.get('record') or 'record'}: {summary.get('cost')} cost, {kind}, "
+        f"{summary.get('n_walkers')} walkers x {summary.get('n_draws')} draws{timing}"
+    )
+    params = summary["parameters"]
+    rows = [[k, *(_fmt(row.get(c)) for c in FIT_COLUMNS)] for k, row in params.items()]
+    print(_table(["parameter", *FIT_COLUMNS], rows))
+    failures = summary.get("diagnostic_failures") or []
+    if failures:
+        print(
+            "hosid: warning: convergence diagnostics failed: " + "; ".join(failures),
+            file=sys.stderr,
+        )
+
+
+def _cmd_fit(args: argparse.Namespace) -> int:
+    n_params = len(PAPER_PARAMS)
+    if args.walkers < 2 * n_params or args.walkers % 2:
+        raise HosidInputError(
+            f"--walkers must be even and at least {2 * n_params} "
+            f"(twice the {n_params} parameters), got {args.walkers}"
+        )
+    backend = args.backend
+    if backend is not None and Path(backend).suffix.lower() not in (".h5", ".hdf5"):
+        raise HosidInputError(f"{backend}: the backend must be an HDF5 file (.h5 or .hdf5)")
+    record_path = Path(args.record)
+    record = read_record(record_path)
+    _check_spectral(record, args.block_seconds, args.omega_max)
+    truths_path = Path(args.truths) if args.truths is not None else _sidecar_truths(record_path)
+    truths = _read_truths(truths_path) if truths_path is not None else None
+    out = Path(args.out)
+    _make_dir(out)
+
+    tree = _run_fit(
+        record,
+        cost=args.cost,
+        form=args.form,
+        constrained=not args.unconstrained,
+        n_walkers=args.walkers,
+        n_steps=args.steps,
+        seed=args.seed,
+        progress=not args.no_progress,
+        backend=backend,
+        window=args.window,
+        block_seconds=args.block_seconds,
+        omega_max=args.omega_max,
+        domain=args.domain,
+        truths=truths,
+    )
+    from hosid import results
+
+    results.save(tree, out / "posterior.nc")
+    paths = _write_fit_report(tree, out)
+    _print_summary(results.summarize(tree, warn=False))
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from hosid import results
+
+    out = Path(args.dir)
+    path = out / "posterior.nc"
+    try:
+        tree = results.load(path)
+    except HosidInputError:
+        raise
+    except (OSError, ValueError) as exc:
+        raise HosidInputError(f"{path}: cannot read ({exc})") from None
+    if "posterior" not in tree.children:
+        raise HosidInputError(f"{path}: not a hosid fit (no posterior group)")
+    paths = _write_fit_report(tree, out)
+    print("wrote " + ", ".join(str(p) for p in paths[1:]))
     return 0
 
 
 # --- parser -----------------------------------------------------------------------------
+
+
+def _spectral_options(parser: argparse.ArgumentParser) -> None:
+    """``--window``, ``--block-seconds``, ``--omega-max``, ``--domain``."""
+    parser.add_argument("--window", choices=WINDOWS, default="hann")
+    parser.add_argument(
+        "--block-seconds",
+        type=_positive,
+        default=20.48,
+        help="block length in seconds, default 20.48",
+    )
+    parser.add_argument(
+        "--omega-max", type=_positive, default=8.0, help="highest frequency used, rad/s, default 8"
+    )
+    parser.add_argument(
+        "--domain",
+        choices=("principal", "reduced", "full"),
+        default="principal",
+        help="trispectral domain: eq (39), eq (64) or all triples; default principal",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -346,22 +546,7 @@ def build_parser() -> argparse.ArgumentParser:
     est = sub.add_parser("estimate", help="estimate parameters from a record", allow_abbrev=False)
     est.add_argument("record", help="record file, .csv (columns t,x) or .npz")
     est.add_argument("--method", choices=METHODS, default="paper")
-    est.add_argument("--window", choices=WINDOWS, default="hann")
-    est.add_argument(
-        "--block-seconds",
-        type=_positive,
-        default=20.48,
-        help="block length in seconds, default 20.48",
-    )
-    est.add_argument(
-        "--omega-max", type=_positive, default=8.0, help="highest frequency used, rad/s, default 8"
-    )
-    est.add_argument(
-        "--domain",
-        choices=("principal", "reduced", "full"),
-        default="principal",
-        help="trispectral domain: eq (39), eq (64) or all triples; default principal",
-    )
+    _spectral_options(est)
     est.add_argument(
         "--form",
         choices=("scaled", "literal"),
@@ -377,6 +562,49 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", default="demo-out", help="output directory, default demo-out")
     demo.add_argument("--seed", type=_seed, default=2026, help="default 2026")
     demo.set_defaults(func=_cmd_demo)
+
+    fit = sub.add_parser(
+        "fit", help="sample the posterior of the parameters (emcee)", allow_abbrev=False
+    )
+    fit.add_argument("record", help="record file, .csv (columns t,x) or .npz")
+    fit.add_argument("--cost", choices=FIT_COSTS, required=True, help="cost behind the likelihood")
+    fit.add_argument(
+        "--form",
+        choices=("scaled", "literal"),
+        default="scaled",
+        help="well-scaled costs (default) or the paper's printed forms",
+    )
+    fit.add_argument(
+        "--unconstrained",
+        action="store_true",
+        help="drop the eq-65 constraint a1eq > 0 (positive equivalent damping)",
+    )
+    fit.add_argument(
+        "--walkers",
+        type=_count,
+        default=24,
+        help="number of walkers, even and at least twice the parameters; default 24",
+    )
+    fit.add_argument(
+        "--steps", type=_count, default=None, help="steps per walker; default automatic"
+    )
+    fit.add_argument("--seed", type=_seed, default=0, help="default 0")
+    fit.add_argument("--backend", metavar="FILE.h5", help="also store the chain in an HDF5 file")
+    fit.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _spectral_options(fit)
+    fit.add_argument(
+        "--truths",
+        metavar="FILE.json",
+        help="true parameter values (default: REC.truths.json next to the record, if any)",
+    )
+    fit.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    fit.set_defaults(func=_cmd_fit)
+
+    rep = sub.add_parser(
+        "report", help="rewrite the report of a fit from DIR/posterior.nc", allow_abbrev=False
+    )
+    rep.add_argument("dir", metavar="DIR", help="directory of a fit (holding posterior.nc)")
+    rep.set_defaults(func=_cmd_report)
     return parser
 
 
@@ -397,7 +625,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         if args.command is None:
-            parser.error("a command is required: simulate, estimate or demo")
+            parser.error("a command is required: simulate, estimate, demo, fit or report")
         func: Callable[[argparse.Namespace], int] = args.func
         return func(args)
     except (_UsageError, HosidInputError) as exc:
