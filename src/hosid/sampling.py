@@ -280,8 +280,6 @@ def fit(
         record, cost=cost, form=form, window=window, block_seconds=block_seconds,
         omega_max=omega_max, domain=domain,
     )
-    if not np.isfinite(record.x).all():  # pragma: no cover - Record validates
-        raise HosidInputError("record contains non-finite values")
     proto = E.estimate(
         record, method="paper", window=window, block_seconds=block_seconds,
         omega_max=omega_max, domain=domain,
@@ -391,10 +389,9 @@ def fit(
                     f"backend {backend} holds {be.shape[0]} walkers x {be.shape[1]} parameters; "
                     f"asked for {n_walkers} x {p}"
                 )
-            initial = None
         else:
             be.reset(n_walkers, p)
-    if initial is None and (be is None or be.iteration == 0):
+    if be is None or be.iteration == 0:
         initial = _initial_walkers(rng, modes, cov, priors, n_walkers)
     sampler = emcee.EnsembleSampler(
         n_walkers, p, log_prob, moves=moves, vectorize=True, backend=be,
@@ -464,7 +461,7 @@ def fit(
 
 
 def _cost_map(pl, priors, post, med, n=41):
-    a1 = np.concatenate([post["a1"].ravel(), [priors["a1"].lower * 0 + med[0]]])
+    a1 = np.append(post["a1"].ravel(), med[0])
     n1 = post["n1"].ravel()
     qa = np.quantile(a1, [0.001, 0.999])
     qn = np.quantile(n1, [0.001, 0.999])
