@@ -1,4 +1,5 @@
-"""Timing table: simulation, J2 and J4A (hosid vs a plain-numpy loop).
+"""Timing table: simulation, J2 and J4A (hosid vs a plain-numpy loop), and the
+damping expansion of the fit's path against the direct pass.
 
 Run ``python benchmarks/run_benchmarks.py``; prints a table and writes
 ``benchmarks/results.md``.  Times are the best of 5 repeats (``timeit`` style).
@@ -72,6 +73,18 @@ def main() -> list[tuple]:
         r4 = best(lambda th=th: j4a_reference(th, Y, data.tri_index, data.domain.gauss, data.T))
         rows.append((f"J2, {P} parameter set(s)", P, t2, r2, r2 / t2))
         rows.append((f"J4A, {P} parameter set(s)", P, t4, r4, r4 / t4))
+
+    # the fit's path: 16 walkers at the cut stiffness, direct pass vs damping polynomials
+    th = thetas(16, seed=3)
+    th[:, 2:4] = (25.0, 5.0)
+    t_build = best(lambda: C.DampingExpansion(data, 25.0, 5.0, (15.0, 1.3)))
+    ex = C.DampingExpansion(data, 25.0, 5.0, (15.0, 1.3))
+    rows.append(("build DampingExpansion (81 direct passes)", 1, t_build, None, None))
+    for name in ("J2W", "J4AW"):
+        np.testing.assert_allclose(ex.fast_cost(name, th), C.COSTS[name](th, data), rtol=1e-8)
+        td = best(lambda name=name: C.COSTS[name](th, data))
+        tf = best(lambda name=name: ex.fast_cost(name, th))
+        rows.append((f"{name}, 16 sets, expansion (ref = direct pass)", 16, tf, td, td / tf))
 
     sp = data.spectra
     header = (

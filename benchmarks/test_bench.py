@@ -61,3 +61,22 @@ def test_cost(benchmark, data, cost, impl, n_sets):
     benchmark.extra_info["n_sets"] = n_sets
     vals = benchmark(run)
     np.testing.assert_allclose(vals, C.COSTS[cost](th, data), rtol=1e-8)
+
+
+@pytest.mark.parametrize("impl", ["direct", "expansion", "expansion_build"])
+@pytest.mark.parametrize("cost", ["J2W", "J4AW"])
+def test_damping_expansion(benchmark, data, cost, impl):
+    """16 walkers' worth of parameter sets at a fixed (cut) stiffness, as in a fit:
+    the direct block/triple pass against the exact damping polynomials."""
+    th = _thetas(16, seed=3)
+    th[:, 2:4] = (25.0, 5.0)
+    ex = C.DampingExpansion(data, 25.0, 5.0, (15.0, 1.3))
+    if impl == "direct":
+        vals = benchmark(lambda: C.COSTS[cost](th, data))
+    elif impl == "expansion":
+        vals = benchmark(lambda: ex.fast_cost(cost, th))
+    else:
+        benchmark(lambda: C.DampingExpansion(data, 25.0, 5.0, (15.0, 1.3)))
+        vals = ex.fast_cost(cost, th)
+    benchmark.extra_info["n_sets"] = 16
+    np.testing.assert_allclose(vals, C.COSTS[cost](th, data), rtol=1e-8)

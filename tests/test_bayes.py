@@ -119,9 +119,17 @@ def test_calibration_recovers_known_design_effect():
 
     y0 = simulator({"mu": 0.0}, duration=0, dt=0, rng=np.random.default_rng(1))
     cal = K.calibrate(
-        components(y0), components, np.array([y0.mean()]), {"mu": float(y0.mean())},
-        duration=0.0, dt=0.0, scale=np.array([1.0]), n_bootstrap=300,
-        rng=np.random.default_rng(2), coordinates=("mu",), simulator=simulator,
+        components(y0),
+        components,
+        np.array([y0.mean()]),
+        {"mu": float(y0.mean())},
+        duration=0.0,
+        dt=0.0,
+        scale=np.array([1.0]),
+        n_bootstrap=300,
+        rng=np.random.default_rng(2),
+        coordinates=("mu",),
+        simulator=simulator,
     )
     # sd of a variance estimate from 300 draws is ~8 %
     assert cal.temperatures["J4AW"] == pytest.approx(m, rel=0.25)
@@ -140,7 +148,13 @@ def test_finite_difference_oracles():
 def short_fit():
     rec = simulate(PAPER_PARAMS, duration=600.0, rng=np.random.default_rng(5))
     return S.fit(
-        rec, cost="J4A", n_walkers=10, n_steps=60, n_bootstrap=3, seed=1, progress=False,
+        rec,
+        cost="J4A",
+        n_walkers=10,
+        n_steps=60,
+        n_bootstrap=3,
+        seed=1,
+        progress=False,
         truths=PAPER_PARAMS,
     )
 
@@ -174,8 +188,12 @@ def test_fit_short_run_warns_on_diagnostics(short_fit):
 
 @pytest.mark.parametrize(
     ("kw", "msg"),
-    [({"n_walkers": 7}, "n_walkers"), ({"n_walkers": 11}, "even"), ({"n_steps": 0}, "n_steps"),
-     ({"cost": "J9"}, "unknown cost")],
+    [
+        ({"n_walkers": 7}, "n_walkers"),
+        ({"n_walkers": 11}, "even"),
+        ({"n_steps": 0}, "n_steps"),
+        ({"cost": "J9"}, "unknown cost"),
+    ],
 )
 def test_fit_rejects_bad_options(paper_record, kw, msg):
     with pytest.raises(HosidInputError, match=msg):

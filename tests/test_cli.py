@@ -96,6 +96,9 @@ def test_simulate_defaults(stub_core, tmp_path, capsys):
     assert isinstance(call["rng"], np.random.Generator)
     assert read_record(out).n == 500
     assert "wrote" in capsys.readouterr().out
+    # the truths sidecar that `hosid fit` reads for its plots
+    assert cli._read_truths(tmp_path / "rec.truths.json") == call["params"]
+    assert cli._sidecar_truths(out) == tmp_path / "rec.truths.json"
 
 
 def test_simulate_options_and_seed(stub_core, tmp_path):

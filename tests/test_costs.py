@@ -260,3 +260,31 @@ def test_literal_costs_match_plain_numpy(linear_data):
     assert C.J2(th, data) == pytest.approx(j2, rel=1e-10)
     assert C.J4A(th, data) == pytest.approx(j4a, rel=1e-8)
     assert C.J4B(th, data) == pytest.approx(j4b, rel=1e-8)
+
+
+# ------------------------------------------------------------------ damping expansion
+@pytest.mark.parametrize("name", sorted(C.COSTS))
+def test_damping_expansion_is_exact(linear_data, name):
+    """With the stiffness held, the block statistics are polynomials in (a1, n1):
+    the expansion reproduces the direct evaluation, also far outside its fit box
+    and at any S0, and the quadratic-form fast paths agree with both."""
+    a2, n2 = 25.0, 1.0
+    ex = C.DampingExpansion(linear_data, a2, n2, (2.0, 0.4))
+    rng = np.random.default_rng(3)
+    th = np.column_stack(
+        [
+            rng.uniform(-6, 6, 9),  # up to 3x the fit box
+            rng.uniform(-1.2, 1.2, 9),
+            np.full(9, a2),
+            np.full(9, n2),
+            rng.uniform(2.0, 40.0, 9),
+        ]
+    )
+    direct = C.COSTS[name](th, linear_data)
+    scale = np.max(np.abs(direct))
+    np.testing.assert_allclose(C.COSTS[name](th, ex), direct, rtol=1e-6, atol=1e-9 * scale)
+    fast = ex.fast_cost(name, th)
+    if name in ("J2", "J2W", "J4A", "J4AW"):
+        np.testing.assert_allclose(fast, direct, rtol=1e-6, atol=1e-9 * scale)
+    else:
+        assert fast is None

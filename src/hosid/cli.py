@@ -228,7 +228,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     params = {k: getattr(args, k) for k in PAPER_PARAMS}
     record = _simulate(params, args.duration, args.dt, args.seed)
     write_record(record, out)
-    print(f"wrote {out}: {record.n} samples, dt={record.dt:g} s")
+    sidecar = out.with_suffix(".truths.json")  # read back by `hosid fit` for its plots
+    _write_json(params, sidecar)
+    print(f"wrote {out}: {record.n} samples, dt={record.dt:g} s (true parameters: {sidecar})")
     return 0
 
 
@@ -322,9 +324,20 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
     print("sampling the J4A pseudo-posterior (calibration, then emcee) ...")
     tree = _run_fit(
-        record, cost="J4A", form="scaled", constrained=True, n_walkers=16, n_steps=None,
-        seed=args.seed, progress=True, backend=None, window="hann", block_seconds=20.48,
-        omega_max=8.0, domain="principal", truths=dict(PAPER_PARAMS),
+        record,
+        cost="J4A",
+        form="scaled",
+        constrained=True,
+        n_walkers=16,
+        n_steps=None,
+        seed=args.seed,
+        progress=True,
+        backend=None,
+        window="hann",
+        block_seconds=20.48,
+        omega_max=8.0,
+        domain="principal",
+        truths=dict(PAPER_PARAMS),
     )
     fit_dir = out / "fit"
     fit_dir.mkdir(parents=True, exist_ok=True)

@@ -56,6 +56,7 @@ inferred forces), so the estimators search bounded regions.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -68,6 +69,7 @@ __all__ = [
     "COSTS",
     "PARAM_NAMES",
     "CostData",
+    "DampingExpansion",
     "evaluate_cost",
     "prepare",
 ]
@@ -75,36 +77,46 @@ __all__ = [
 PARAM_NAMES = ("a1", "n1", "a2", "n2", "S0")
 
 
-@numba.njit(parallel=True, cache=True)
-def _trispectrum(Xt, pa, pb, ta, tb, out, out2):  # pragma: no cover - compiled
-    """Block sums of q_r = X(k1) X(k2) X(k3) X*(k4) and of |q_r|^2.
+@numba.njit(cache=True)
+def _trispectrum_one(X, pa, pb, ta, tb, out, out2):  # pragma: no cover - compiled
+    """Block sums of q_r = X(k1) X(k2) X(k3) X*(k4) and of |q_r|^2 for one force.
 
-    ``Xt`` is (P, K, N) with the block index last (contiguous).  Each product is
+    ``X`` is (K, N) with the block index last (contiguous).  Each product is
     split into the pair products A = X(k1) X*(k4) (``pa``) and B = X(k2) X(k3)
     (``pb``), each formed once per distinct pair, so a triple costs one complex
     multiply per block.
     """
-    P, _K, N = Xt.shape
+    N = X.shape[1]
     na, nb, nt = pa.shape[0], pb.shape[0], ta.shape[0]
     A = np.empty((na, N), dtype=np.complex128)
     B = np.empty((nb, N), dtype=np.complex128)
-    for p in range(P):
-        for j in numba.prange(na):
-            for r in range(N):
-                A[j, r] = Xt[p, pa[j, 0], r] * np.conj(Xt[p, pa[j, 1], r])
-        for j in numba.prange(nb):
-            for r in range(N):
-                B[j, r] = Xt[p, pb[j, 0], r] * Xt[p, pb[j, 1], r]
-        for t in numba.prange(nt):
-            a, b = ta[t], tb[t]
-            acc = 0.0 + 0.0j
-            acc2 = 0.0
-            for r in range(N):
-                q = A[a, r] * B[b, r]
-                acc += q
-                acc2 += q.real * q.real + q.imag * q.imag
-            out[p, t] = acc
-            out2[p, t] = acc2
+    for j in range(na):
+        for r in range(N):
+            A[j, r] = X[pa[j, 0], r] * np.conj(X[pa[j, 1], r])
+    for j in range(nb):
+        for r in range(N):
+            B[j, r] = X[pb[j, 0], r] * X[pb[j, 1], r]
+    for t in range(nt):
+        a, b = ta[t], tb[t]
+        acc = 0.0 + 0.0j
+        acc2 = 0.0
+        for r in range(N):
+            q = A[a, r] * B[b, r]
+            acc += q
+            acc2 += q.real * q.real + q.imag * q.imag
+        out[t] = acc
+        out2[t] = acc2
+
+
+@numba.njit(parallel=True, cache=True)
+def _trispectrum(Xt, pa, pb, ta, tb, out, out2):  # pragma: no cover - compiled
+    """:func:`_trispectrum_one` for each force of the batch ``Xt`` (P, K, N),
+    in parallel over the batch (one parallel region per call: fine-grained
+    parallelism inside one force was an order of magnitude slower on a loaded
+    2-core machine).
+    """
+    for p in numba.prange(Xt.shape[0]):
+        _trispectrum_one(Xt[p], pa, pb, ta, tb, out[p], out2[p])
 
 
 def _matchings(items):
@@ -240,6 +252,18 @@ class CostData:
         )
         return np.mean(Xb.real**2 + Xb.imag**2, axis=-1) / (2 * np.pi * self.T)
 
+    def band_moments(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""Block means of :math:`|X|^2/(2\pi T)` (= Va) and :math:`|X|^4/(2\pi T)^2`
+        on the band, each of shape ``(..., K_band)``.
+        """
+        Xb = self.inferred_force(theta, self.band_index)
+        p = (Xb.real**2 + Xb.imag**2) / (2 * np.pi * self.T)
+        return p.mean(axis=-1), (p**2).mean(axis=-1)
+
+    def shared_force(self, theta: np.ndarray) -> np.ndarray | None:
+        """The inferred force, computed once for costs that need several statistics."""
+        return self.inferred_force(theta)
+
     def fourth_order(
         self, theta: np.ndarray, X: np.ndarray | None = None, second_moment: bool = False
     ):
@@ -273,6 +297,186 @@ def prepare(spectra: BlockSpectra, domain: str | TrispectralDomain = "principal"
     return CostData(spectra=spectra, domain=domain)
 
 
+def _monomials(u: np.ndarray, w: np.ndarray, degree: int) -> np.ndarray:
+    """All monomials u^i w^j with i + j <= degree, shape ``(..., (d+1)(d+2)/2)``."""
+    return np.stack(
+        [u**i * w ** (d - i) for d in range(degree + 1) for i in range(d, -1, -1)], axis=-1
+    )
+
+
+@functools.cache
+def _chebyshev_fit():
+    """The 9 x 9 Chebyshev grid and the least-squares operators (pinv) per degree."""
+    nodes = np.cos(np.pi * (np.arange(9) + 0.5) / 9)
+    U, W = np.meshgrid(nodes, nodes, indexing="ij")
+    uw = np.column_stack([U.ravel(), W.ravel()])
+    return uw, {d: np.linalg.pinv(_monomials(uw[:, 0], uw[:, 1], d)) for d in (2, 4, 8)}
+
+
+class DampingExpansion:
+    r"""The block statistics at fixed stiffness as exact polynomials in the damping.
+
+    With the stiffness held at :math:`(a_2, n_2)` the inferred force (eq 45) is
+    affine in the damping, :math:`X_r = F_r + a_1 Y_{1r} + n_1 Y_{2r}`, so every
+    block statistic the costs use is a polynomial in :math:`(a_1, n_1)`:
+    :math:`V^a` (degree 2), the block mean of :math:`|X|^4` (4), :math:`V^b`
+    (eq 57-58, degree 4) and the block mean of :math:`|X_1X_2X_3X_4^*|^2` (8).
+    Their coefficients are found once by least squares on a
+    :math:`9	imes 9` Chebyshev grid in scaled variables
+    :math:`u = a_1/s_a, w = n_1/s_n` (exact up to rounding; checked against the
+    direct evaluation at random points on construction), after which a cost
+    evaluation is a few small matrix products instead of a pass over all blocks
+    and triples.  The object has the interface of :class:`CostData` that the
+    costs use; the stiffness entries of ``theta`` are ignored.
+
+    Parameters
+    ----------
+    data : CostData
+    a2, n2 : float
+        The stiffness held fixed.
+    scale : (s_a, s_n)
+        Scales of :math:`a_1` and :math:`n_1` over which the fit is made (the
+        prior box); the polynomials are exact everywhere, the scaling only
+        keeps the fit well conditioned.
+    rtol : float
+        Largest accepted relative error of the check.
+    """
+
+    def __init__(self, data: CostData, a2: float, n2: float, scale, *, rtol: float = 1e-7):
+        self.data = data
+        self.stiffness = (float(a2), float(n2))
+        self.scale = tuple(float(abs(v)) or 1.0 for v in scale)
+        uw, fit = _chebyshev_fit()
+        stats = self._direct(uw)
+        self.coef = {}
+        for name, deg in (("va", 2), ("va2", 4), ("vb", 4), ("vb2", 8)):
+            self.coef[name] = fit[deg] @ stats[name]
+        test = np.random.default_rng(0).uniform(-1.5, 1.5, size=(4, 2))
+        direct = self._direct(test)
+        for name, deg in (("va", 2), ("va2", 4), ("vb", 4), ("vb2", 8)):
+            approx = _monomials(test[:, 0], test[:, 1], deg) @ self.coef[name]
+            err = np.max(np.abs(approx - direct[name])) / np.max(np.abs(direct[name]))
+            if not err <= rtol:
+                raise FloatingPointError(
+                    f"damping expansion of {name} is inaccurate (relative error {err:.1e})"
+                )
+
+        self._reduce()
+
+    def _reduce(self) -> None:
+        r"""Quadratic forms of the costs' sums over ordinates (module doc of the class).
+
+        With :math:`V^b_t = \phi_4^{\mathsf T} C_t` (:math:`\phi_d` the monomials up to
+        degree :math:`d`) and weights :math:`w_t`,
+        :math:`\sum_t w_t |V^b_t|^2 = \phi_4^{\mathsf T} Q \phi_4` with
+        :math:`Q = \sum_t w_t \operatorname{Re}(\bar C_t C_t^{\mathsf T})`, so the
+        literal and A-form costs need no per-ordinate work at all.
+        """
+        d = self.data
+        c = self.coef
+        self._vb_split = (np.ascontiguousarray(c["vb"].real), np.ascontiguousarray(c["vb"].imag))
+        Cr, Ci = self._vb_split
+        Ca = c["va"]
+        w = 1.0 / d.null_var
+        g = d.null_mean
+        gauss = d.domain.gauss
+        self._red = {
+            "Q2": Ca @ Ca.T,
+            "sa": Ca.sum(axis=1),
+            "sa2": c["va2"].sum(axis=1),
+            "K": Ca.shape[1],
+            "Q4w": (Cr * w) @ Cr.T + (Ci * w) @ Ci.T,
+            "s8w": c["vb2"] @ w,
+            "r4w": Cr @ (w * g),
+            "Gw": float(np.sum(w * g**2)),
+            "Q4": Cr @ Cr.T + Ci @ Ci.T,
+            "r4g": Cr @ gauss,
+            "G2": float(np.sum(gauss**2)),
+        }
+
+    def fast_cost(self, name: str, theta) -> np.ndarray | None:
+        """``J2``, ``J4A``, ``J2W``, ``J4AW`` from the quadratic forms; None for others."""
+        th = _theta(theta)
+        r = self._red
+        N, S0 = self.data.N, th[..., 4]
+        if name in ("J2", "J2W"):
+            p2 = self._phi(th, 2)
+            sva2 = np.einsum("...i,ij,...j->...", p2, r["Q2"], p2)  # sum Va^2
+            sva = p2 @ r["sa"]
+            s = self.data.k2 * S0
+            if name == "J2":  # eq (50)
+                return sva2 - 2 * s * sva + r["K"] * s**2
+            sva4 = self._phi(th, 4) @ r["sa2"]  # sum of the block means of p^2
+            return (
+                N
+                / (N - 1)
+                * (N * sva2 / s**2 - 2 * (N - 1) * sva / s + (N - 1) * r["K"] - sva4 / s**2)
+            )
+        if name in ("J4A", "J4AW"):
+            p4 = self._phi(th, 4)
+            if name == "J4A":  # eq (59)
+                q = np.einsum("...i,ij,...j->...", p4, r["Q4"], p4)
+                return q - 2 * S0**2 * (p4 @ r["r4g"]) + S0**4 * r["G2"]
+            T = self.data.T
+            c = 8 * np.pi**3 * T / ((2 * np.pi * T) ** 2 * (self.data.k2 * S0) ** 2)
+            q = np.einsum("...i,ij,...j->...", p4, r["Q4w"], p4)
+            s8 = self._phi(th, 8) @ r["s8w"]
+            return (
+                N
+                / (N - 1)
+                * (
+                    N * c**2 * q
+                    - c**2 * s8
+                    - 2 * (N - 1) * c * (p4 @ r["r4w"])
+                    + (N - 1) * r["Gw"]
+                )
+            )
+        return None
+
+    def _theta_of(self, uw: np.ndarray) -> np.ndarray:
+        th = np.empty((uw.shape[0], 5))
+        th[:, 0] = uw[:, 0] * self.scale[0]
+        th[:, 1] = uw[:, 1] * self.scale[1]
+        th[:, 2:4] = self.stiffness
+        th[:, 4] = 1.0
+        return th
+
+    def _direct(self, uw: np.ndarray) -> dict:
+        th = self._theta_of(uw)
+        d = self.data
+        va, va2 = d.band_moments(th)
+        vb, vb2 = d.fourth_order(th, second_moment=True)
+        return {"va": va, "va2": va2, "vb": vb, "vb2": vb2}
+
+    def __getattr__(self, name):
+        # N, T, k2, domain, null_mean, null_var, _va_signed, spectra, ...
+        return getattr(self.data, name)
+
+    def _phi(self, theta: np.ndarray, degree: int) -> np.ndarray:
+        th = np.asarray(theta, dtype=float)
+        return _monomials(th[..., 0] / self.scale[0], th[..., 1] / self.scale[1], degree)
+
+    def shared_force(self, theta: np.ndarray) -> None:
+        """Not needed: the statistics come from the polynomials."""
+        return None
+
+    def second_order(self, theta: np.ndarray, X=None) -> np.ndarray:
+        """Va on the band (eq 47), shape ``(..., K_band)``."""
+        return self._phi(theta, 2) @ self.coef["va"]
+
+    def band_moments(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """As :meth:`CostData.band_moments`."""
+        return self.second_order(theta), self._phi(theta, 4) @ self.coef["va2"]
+
+    def fourth_order(self, theta: np.ndarray, X=None, second_moment: bool = False):
+        """As :meth:`CostData.fourth_order`."""
+        p4 = self._phi(theta, 4)
+        vb = p4 @ self._vb_split[0] + 1j * (p4 @ self._vb_split[1])
+        if not second_moment:
+            return vb
+        return vb, self._phi(theta, 8) @ self.coef["vb2"]
+
+
 def _theta(theta) -> np.ndarray:
     th = np.asarray(theta, dtype=float)
     if th.shape[-1] != 5:
@@ -299,7 +503,7 @@ def J4A(theta, data: CostData) -> np.ndarray:
 def J4B(theta, data: CostData) -> np.ndarray:
     """Eq (62)-(63): sum of |Vc|^2, Gaussian terms built from Va / k2^2 (no S0)."""
     th = _theta(theta)
-    X = data.inferred_force(th)
+    X = data.shared_force(th)
     va = data._va_signed(data.second_order(th, X))
     vb = data.fourth_order(th, X)
     d = data.domain.delta
@@ -326,15 +530,15 @@ def J2W(theta, data: CostData) -> np.ndarray:
     :math:`h_r = |X_r|^2 / (2\pi T k_2 S_0) - 1`, each ordinate of unit variance.
     """
     th = _theta(theta)
-    X = data.inferred_force(th, data.band_index)
-    p = (X.real**2 + X.imag**2) / (2 * np.pi * data.T * data.k2 * th[..., 4:5, None])
-    h = p - 1.0
-    m, m2 = h.mean(axis=-1), (h**2).mean(axis=-1)
+    va, va2 = data.band_moments(th)
+    s = data.k2 * th[..., 4:5]
+    m = va / s - 1.0  # block mean of h = p - 1, p = |X|^2 / (2 pi T k2 S0)
+    m2 = va2 / s**2 - 2.0 * va / s + 1.0  # block mean of h^2
     return data.N * np.sum(_unbiased_sq(m**2, m2, data.N), axis=-1)
 
 
 def _tri_standardized(th, data: CostData, own_level: bool) -> np.ndarray:
-    X = data.inferred_force(th)
+    X = data.shared_force(th)
     vb, vb2 = data.fourth_order(th, X, second_moment=True)
     if own_level:
         s = data._va_signed(data.second_order(th, X))  # (..., n, 4)
