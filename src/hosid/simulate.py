@@ -56,47 +56,72 @@ def _no_drift(x, v, c):  # pragma: no cover - compiled
     return 0.0
 
 
+@numba.njit(inline="always")
+def _rk4(x, v, g, wk, h, c, wc, extra):  # pragma: no cover - compiled
+    """One RK4 sub-step with the forcing held at ``wk``; returns the new (x, v, g)."""
+    if wc > 0.0:
+        # state (x, v, g): g' = wc (w - g)
+        k1x = v
+        k1v = _accel(x, v, g, c) - extra(x, v, c)
+        k1g = wc * (wk - g)
+        x2, v2, g2 = x + 0.5 * h * k1x, v + 0.5 * h * k1v, g + 0.5 * h * k1g
+        k2x = v2
+        k2v = _accel(x2, v2, g2, c) - extra(x2, v2, c)
+        k2g = wc * (wk - g2)
+        x3, v3, g3 = x + 0.5 * h * k2x, v + 0.5 * h * k2v, g + 0.5 * h * k2g
+        k3x = v3
+        k3v = _accel(x3, v3, g3, c) - extra(x3, v3, c)
+        k3g = wc * (wk - g3)
+        x4, v4, g4 = x + h * k3x, v + h * k3v, g + h * k3g
+        k4x = v4
+        k4v = _accel(x4, v4, g4, c) - extra(x4, v4, c)
+        k4g = wc * (wk - g4)
+        g += h / 6.0 * (k1g + 2.0 * k2g + 2.0 * k3g + k4g)
+    else:
+        k1x = v
+        k1v = _accel(x, v, wk, c) - extra(x, v, c)
+        x2, v2 = x + 0.5 * h * k1x, v + 0.5 * h * k1v
+        k2x = v2
+        k2v = _accel(x2, v2, wk, c) - extra(x2, v2, c)
+        x3, v3 = x + 0.5 * h * k2x, v + 0.5 * h * k2v
+        k3x = v3
+        k3v = _accel(x3, v3, wk, c) - extra(x3, v3, c)
+        x4, v4 = x + h * k3x, v + h * k3v
+        k4x = v4
+        k4v = _accel(x4, v4, wk, c) - extra(x4, v4, c)
+    x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
+    v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+    return x, v, g
+
+
 @numba.njit(cache=True)
-def _integrate(w, n_out, sub, h, c, wc, burn, extra, xs, vs, x0, v0, g0):
-    """RK4 with piecewise-constant forcing ``w`` (one value per sub-step)."""
+def _integrate(w, n_out, sub, h, c, wc, burn, xs, vs, x0, v0, g0):  # pragma: no cover
+    """RK4 with piecewise-constant forcing ``w`` (one value per sub-step), built-in
+    terms only.  Cached on disk: its signature holds no function type (a
+    function-typed argument made numba's cache index fail to pickle and crash
+    concurrent processes).
+    """
     x, v, g = x0, v0, g0
     k = 0
     for i in range(burn + n_out):
         for _ in range(sub):
-            wk = w[k]
+            x, v, g = _rk4(x, v, g, w[k], h, c, wc, _no_drift)
             k += 1
-            if wc > 0.0:
-                # state (x, v, g): g' = wc (w - g)
-                k1x = v
-                k1v = _accel(x, v, g, c) - extra(x, v, c)
-                k1g = wc * (wk - g)
-                x2, v2, g2 = x + 0.5 * h * k1x, v + 0.5 * h * k1v, g + 0.5 * h * k1g
-                k2x = v2
-                k2v = _accel(x2, v2, g2, c) - extra(x2, v2, c)
-                k2g = wc * (wk - g2)
-                x3, v3, g3 = x + 0.5 * h * k2x, v + 0.5 * h * k2v, g + 0.5 * h * k2g
-                k3x = v3
-                k3v = _accel(x3, v3, g3, c) - extra(x3, v3, c)
-                k3g = wc * (wk - g3)
-                x4, v4, g4 = x + h * k3x, v + h * k3v, g + h * k3g
-                k4x = v4
-                k4v = _accel(x4, v4, g4, c) - extra(x4, v4, c)
-                k4g = wc * (wk - g4)
-                g += h / 6.0 * (k1g + 2.0 * k2g + 2.0 * k3g + k4g)
-            else:
-                k1x = v
-                k1v = _accel(x, v, wk, c) - extra(x, v, c)
-                x2, v2 = x + 0.5 * h * k1x, v + 0.5 * h * k1v
-                k2x = v2
-                k2v = _accel(x2, v2, wk, c) - extra(x2, v2, c)
-                x3, v3 = x + 0.5 * h * k2x, v + 0.5 * h * k2v
-                k3x = v3
-                k3v = _accel(x3, v3, wk, c) - extra(x3, v3, c)
-                x4, v4 = x + h * k3x, v + h * k3v
-                k4x = v4
-                k4v = _accel(x4, v4, wk, c) - extra(x4, v4, c)
-            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+        if i >= burn:
+            xs[i - burn] = x
+            vs[i - burn] = v
+    return x, v, g
+
+
+@numba.njit
+def _integrate_extra(w, n_out, sub, h, c, wc, burn, extra, xs, vs, x0, v0, g0):  # pragma: no cover
+    """As :func:`_integrate` with a user drift ``extra`` (compiled per process)."""
+    x, v, g = x0, v0, g0
+    k = 0
+    for i in range(burn + n_out):
+        for _ in range(sub):
+            x, v, g = _rk4(x, v, g, w[k], h, c, wc, extra)
+            k += 1
         if i >= burn:
             xs[i - burn] = x
             vs[i - burn] = v
@@ -168,7 +193,10 @@ def simulate(
     w *= np.sqrt(2.0 * np.pi * S0 / h)
     xs = np.empty(n_out)
     vs = np.empty(n_out)
-    _integrate(w, n_out, sub, h, c, wc, burn, extra_drift or _no_drift, xs, vs, 0.0, 0.0, 0.0)
+    if extra_drift is None:
+        _integrate(w, n_out, sub, h, c, wc, burn, xs, vs, 0.0, 0.0, 0.0)
+    else:
+        _integrate_extra(w, n_out, sub, h, c, wc, burn, extra_drift, xs, vs, 0.0, 0.0, 0.0)
     noise_sd = float(params.get("noise_sd", 0.0) or 0.0)
     if noise_sd > 0:
         xs += noise_sd * rng.standard_normal(n_out)
