@@ -277,7 +277,10 @@ class CostData:
         Xs = np.ascontiguousarray(X.reshape((-1, *X.shape[-2:])))
         out = np.empty((Xs.shape[0], self.domain.size), dtype=complex)
         out2 = np.empty((Xs.shape[0], self.domain.size))
-        _trispectrum(Xs, *self._pairs, out, out2)
+        if Xs.shape[0] == 1:  # no parallel region for a single force
+            _trispectrum_one(Xs[0], *self._pairs, out[0], out2[0])
+        else:
+            _trispectrum(Xs, *self._pairs, out, out2)
         scale = 8 * np.pi**3 * self.T
         vb = (out / (self.N * scale)).reshape((*batch, self.domain.size))
         if not second_moment:
