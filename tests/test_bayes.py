@@ -198,3 +198,9 @@ def test_fit_short_run_warns_on_diagnostics(short_fit):
 def test_fit_rejects_bad_options(paper_record, kw, msg):
     with pytest.raises(HosidInputError, match=msg):
         S.fit(paper_record, progress=False, **kw)
+
+
+def test_tau_max_guards_non_finite_autocorrelation_times():
+    """A stuck parameter's NaN autocorrelation time must not crash the burn-in."""
+    assert S._tau_max(np.array([4.9, 5.3]), 60) == 5.3
+    assert S._tau_max(np.array([4.9, np.nan, np.inf]), 60) == 6.0  # n_steps / 10

@@ -222,6 +222,14 @@ def _global_search(pl: PseudoLikelihood, priors: PriorSet, start: np.ndarray, si
     return _mode(objective, line[np.argmin(J)], scale)
 
 
+def _tau_max(tau: np.ndarray, n_steps: int) -> float:
+    """Largest autocorrelation time; a parameter whose estimate is not finite (a
+    chain too short or stuck) counts as ``n_steps / 10`` (emcee's reliability bound).
+    """
+    tau = np.where(np.isfinite(tau), tau, max(n_steps / 10, 1.0))
+    return float(np.max(tau))
+
+
 def _mirror(coords: np.ndarray, random) -> tuple[np.ndarray, np.ndarray]:
     r"""Twin-mode move: each walker proposes :math:`(a_1, n_1) \to (-a_1, -n_1)`
     with probability 1/2.  The map is an involution with unit Jacobian, so the
@@ -488,7 +496,7 @@ def fit(
             state = None
             done = sampler.iteration
             tau = sampler.get_autocorr_time(tol=0, discard=done // 5)
-            tau_max = float(np.max(tau))
+            tau_max = _tau_max(tau, done)
             burn = math.ceil(3 * tau_max)
             if done - burn >= MIN_KEPT_TAU * tau_max and _diagnostics_pass(
                 sampler.get_chain(discard=burn)
@@ -496,7 +504,7 @@ def fit(
                 break
     n_done = sampler.iteration
     tau = sampler.get_autocorr_time(tol=0, discard=n_done // 5)
-    tau_max = float(np.max(tau))
+    tau_max = _tau_max(tau, n_done)
     burn = min(math.ceil(3 * tau_max), n_done // 2)
     chain = sampler.get_chain(discard=burn)  # (draw, walker, p)
     blobs = sampler.get_blobs(discard=burn)  # (draw, walker, k)
