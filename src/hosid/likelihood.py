@@ -255,8 +255,10 @@ class PseudoLikelihood:
             out._expansion = self._expansion  # same cut: share the polynomials
         return out
 
-    def raw(self, theta) -> dict[str, np.ndarray]:
-        """Untempered, unweighted cost of each component at ``theta``."""
+    def raw(self, theta, *, spectral_only: bool = False) -> dict[str, np.ndarray]:
+        """Untempered, unweighted cost of each component at ``theta`` (without the
+        ``moments`` component when ``spectral_only``).
+        """
         th = np.asarray(theta, dtype=float)
         ts = th
         if self.stiffness is not None:
@@ -266,7 +268,8 @@ class PseudoLikelihood:
         out = {}
         for c in self.components:
             if c == "moments":
-                out[c] = self.moments.cost(th)
+                if not spectral_only:
+                    out[c] = self.moments.cost(th)
             elif ex is None:
                 out[c] = C.COSTS[c](ts, self.data)
             else:
@@ -276,7 +279,7 @@ class PseudoLikelihood:
 
     def spectral_cost(self, theta) -> np.ndarray:
         """Weighted sum of the spectral components only (untempered)."""
-        return sum(self.weights[c] * j for c, j in self.raw(theta).items() if c != "moments")
+        return sum(self.weights[c] * j for c, j in self.raw(theta, spectral_only=True).items())
 
     def pointwise(self, theta) -> dict[str, np.ndarray]:
         r"""Log pseudo-likelihood of each component, :math:`-w_c J_c/(2\tau)`."""

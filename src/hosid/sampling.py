@@ -380,7 +380,7 @@ def fit(
         return th
 
     def spectral(q):
-        return lambda t: {k: v for k, v in q.raw(embed(t)).items() if k != "moments"}
+        return lambda t: q.raw(embed(t), spectral_only=True)
 
     if temperature is None:
         params = dict(zip(NAMES, map(float, mode), strict=True))

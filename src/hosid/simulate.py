@@ -115,7 +115,12 @@ def _integrate(w, n_out, sub, h, c, wc, burn, xs, vs, x0, v0, g0):  # pragma: no
 
 @numba.njit
 def _integrate_extra(w, n_out, sub, h, c, wc, burn, extra, xs, vs, x0, v0, g0):  # pragma: no cover
-    """As :func:`_integrate` with a user drift ``extra`` (compiled per process)."""
+    """As :func:`_integrate` with a user drift ``extra`` (compiled per process).
+
+    The loop is repeated rather than shared: a cached :func:`_integrate` that calls
+    this function with the global ``_no_drift`` cannot be cached by numba
+    ("dynamic globals"), and a function-typed argument breaks its cache index.
+    """
     x, v, g = x0, v0, g0
     k = 0
     for i in range(burn + n_out):
