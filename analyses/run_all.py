@@ -22,6 +22,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 #: Slowest first, so that parallel runs finish together.
 SCRIPTS = (
+    "diagnose_confusion",
     "beyond_coverage",
     "fig01_02_stiffness",
     "beyond_record_length",
@@ -30,6 +31,8 @@ SCRIPTS = (
     "beyond_peer_drift",
     "fig04_05_J2_sweep",
     "fig07_08_contours",
+    "modelfit_coverage",
+    "diagnose_workflow",
 )
 
 

@@ -1,5 +1,6 @@
-"""Timing table: simulation, J2 and J4A (hosid vs a plain-numpy loop), and the
-damping expansion of the fit's path against the direct pass.
+"""Timing table: simulation, J2 and J4A (hosid vs a plain-numpy loop), the
+damping expansion of the fit's path against the direct pass, and the issue-4
+term-model fit and diagnose run (against the issue-3 emcee fit and one simulation).
 
 Run ``python benchmarks/run_benchmarks.py``; prints a table and writes
 ``benchmarks/results.md``.  Times are the best of 5 repeats (``timeit`` style).
@@ -85,6 +86,30 @@ def main() -> list[tuple]:
         td = best(lambda name=name: C.COSTS[name](th, data))
         tf = best(lambda name=name: ex.fast_cost(name, th))
         rows.append((f"{name}, 16 sets, expansion (ref = direct pass)", 16, tf, td, td / tf))
+
+    # issue 4: the term-model fit against the issue-3 emcee fit of the same record
+    from hosid.diagnose import diagnose
+    from hosid.modelfit import estimate_model, fit_model
+    from hosid.sampling import fit
+
+    rec = simulate(PAPER_PARAMS, duration=2000.0, dt=0.02, rng=np.random.default_rng(SEED))
+    t_est = best(lambda: estimate_model(rec, "paper"))
+    t_mf = best(lambda: fit_model(rec, "paper", rng=np.random.default_rng(0)), repeat=3)
+    t_emcee = best(lambda: fit(rec, cost="J4A", seed=0, progress=False, n_bootstrap=30), repeat=1)
+    rows.append(("estimate_model, paper (generator + J2W)", 1, t_est, None, None))
+    rows.append(
+        ("fit_model, paper (ref = issue-3 emcee fit, J4A)", 1, t_mf, t_emcee, t_emcee / t_mf)
+    )
+    t_diag = best(lambda: diagnose(rec, "paper", rng=np.random.default_rng(0)), repeat=1)
+    rows.append(
+        (
+            f"diagnose, paper + 5 candidates, 20 replicates (= {t_diag / t_sim:.0f} simulations)",
+            1,
+            t_diag,
+            None,
+            None,
+        )
+    )
 
     sp = data.spectra
     header = (

@@ -87,8 +87,9 @@ def test_coverage_study_runs_on_tiny_settings(tmp_path):
     )
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    md = mod.run(1, cost="J4A", S0=100.0, duration=600.0, seed=3, out=tmp_path, n_steps=40,
-                 n_bootstrap=3)
+    md = mod.run(
+        1, cost="J4A", S0=100.0, duration=600.0, seed=3, out=tmp_path, n_steps=40, n_bootstrap=3
+    )
     text = md.read_text()
     assert "| a1 |" in text and "90 % coverage" in text
     assert (tmp_path / "coverage_J4A.csv").is_file()
@@ -232,3 +233,47 @@ def test_run_all_quick_one_script(figs, tmp_path):
     assert mod.main(["--quick", "--only", "fig07_08_contours", "--out", str(tmp_path)]) == 0
     assert "fig07_08_contours\tok" in (tmp_path / "run_all.log").read_text()
     _png(tmp_path / "fig07_08_contours.png")
+
+
+def test_diagnose_workflow_quick(tmp_path):
+    mod = _load("diagnose_workflow")
+    assert mod.main(["--quick", "--b2", "8", "--out", str(tmp_path)]) == 0
+    out = tmp_path / "diagnose_workflow"
+    assert (out / "workflow_force.png").stat().st_size > 0
+    assert (out / "diagnose" / "report.html").stat().st_size > 0
+    with open(out / "workflow.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert rows[0]["model"] == "base (paper)"
+    assert len(rows) == 6  # base and the five candidates the paper model lacks
+
+
+def test_diagnose_confusion_quick(tmp_path):
+    mod = _load("diagnose_confusion")
+    code = mod.main(
+        [
+            "--quick",
+            "--records",
+            "1",
+            "--jobs",
+            "1",
+            "--only",
+            "none (paper)",
+            "--out",
+            str(tmp_path),
+        ]
+    )
+    assert code == 0
+    with open(tmp_path / "diagnose_confusion" / "confusion.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 1 and rows[0]["hidden"] == "none"
+    assert float(rows[0]["gap_before"]) > 0
+    assert "none (paper)" in (tmp_path / "diagnose_confusion" / "confusion.md").read_text()
+
+
+def test_modelfit_coverage_quick(tmp_path):
+    mod = _load("modelfit_coverage")
+    assert mod.main(["--quick", "--out", str(tmp_path)]) == 0
+    with open(tmp_path / "modelfit_coverage" / "modelfit_coverage.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {r["model"] for r in rows} == {"paper", "linear"}
+    assert all(0.0 <= float(r["cover90"]) <= 1.0 for r in rows)

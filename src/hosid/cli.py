@@ -226,6 +226,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             f"{out}: unknown file type {out.suffix or '(none)'!r}; use .csv or .npz"
         )
     params = {k: getattr(args, k) for k in PAPER_PARAMS}
+    for k in ("b2", "mu", "m", "wc", "noise_sd"):
+        if getattr(args, k, None) is not None:
+            params[k] = getattr(args, k)
     record = _simulate(params, args.duration, args.dt, args.seed)
     write_record(record, out)
     sidecar = out.with_suffix(".truths.json")  # read back by `hosid fit` for its plots
@@ -476,6 +479,41 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from hosid.diagnose import diagnose, write_report
+    from hosid.terms import Model
+
+    record = read_record(Path(args.record))
+    base = Model.from_spec(args.model)
+    candidates = None
+    if args.candidates is not None:
+        candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
+    out = Path(args.out)
+    _make_dir(out)
+    diag = diagnose(
+        record,
+        base,
+        rng=np.random.default_rng(args.seed),
+        candidates=candidates,
+        replicates=args.replicates,
+        threshold=args.threshold,
+        shrink=args.shrink,
+        progress=not args.no_progress,
+    )
+    paths = write_report(diag, out)
+    rep = diag.report()
+    base_names = " + ".join(rep["base"])
+    print(f"base {base_names}: gap {rep['gap_before']:.2f} (z = {rep['z_before']:.1f})")
+    for c in rep["candidates"]:
+        if c["gap_after"] is None or "error" in c:
+            print(f"  + {c['effect']:<20s} failed: {c['error']}")
+        else:
+            print(f"  + {c['effect']:<20s} gap {c['gap_after']:.2f}  (x{c['shrink']:.2f})")
+    print(f"named effect: {rep['named_effect'] or 'none'} - {rep['decision']}")
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from hosid import results
 
@@ -550,6 +588,16 @@ def build_parser() -> argparse.ArgumentParser:
             default=PAPER_PARAMS[name],
             help=f"default {PAPER_PARAMS[name]:g}",
         )
+    for name, kind, text in (
+        ("b2", _number, "quadratic stiffness b2 x^2"),
+        ("mu", _nonnegative, "Coulomb friction mu sign(x')"),
+        ("m", _number, "mean force m"),
+        ("wc", _positive, "corner (rad/s) of a first-order low-pass on the force"),
+        ("noise_sd", _positive, "sd of white measurement noise on x"),
+    ):
+        sim.add_argument(
+            f"--{name.replace('_', '-')}", dest=name, type=kind, help=f"{text}; default none"
+        )
     sim.add_argument("--duration", type=_positive, default=2000.0, help="seconds, default 2000")
     sim.add_argument("--dt", type=_positive, default=0.02, help="seconds, default 0.02")
     sim.add_argument("--seed", type=_seed, default=0, help="default 0")
@@ -613,6 +661,43 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--out", required=True, metavar="DIR", help="output directory")
     fit.set_defaults(func=_cmd_fit)
 
+    dia = sub.add_parser(
+        "diagnose",
+        help="find the gap between a model and the record and name the missing effect",
+        allow_abbrev=False,
+    )
+    dia.add_argument("record", help="record file, .csv (columns t,x) or .npz")
+    dia.add_argument(
+        "--model",
+        default="paper",
+        metavar="BASE",
+        help="base model: linear, paper, or comma-separated term names; default paper",
+    )
+    dia.add_argument(
+        "--candidates",
+        metavar="LIST",
+        help="comma-separated effects to try; default every candidate not in BASE",
+    )
+    dia.add_argument(
+        "--replicates", type=_count, default=20, help="replicates per model; default 20"
+    )
+    dia.add_argument(
+        "--threshold",
+        type=float,
+        default=3.0,
+        help="robust z of the base gap above its null for significance; default 3",
+    )
+    dia.add_argument(
+        "--shrink",
+        type=float,
+        default=0.75,
+        help="the named effect must cut the gap to this fraction or less; default 0.75",
+    )
+    dia.add_argument("--seed", type=_seed, default=0, help="default 0")
+    dia.add_argument("--no-progress", action="store_true", help="no progress bar")
+    dia.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    dia.set_defaults(func=_cmd_diagnose)
+
     rep = sub.add_parser(
         "report", help="rewrite the report of a fit from DIR/posterior.nc", allow_abbrev=False
     )
@@ -638,7 +723,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         if args.command is None:
-            parser.error("a command is required: simulate, estimate, demo, fit or report")
+            parser.error(
+                "a command is required: simulate, estimate, demo, fit, diagnose or report"
+            )
         func: Callable[[argparse.Namespace], int] = args.func
         return func(args)
     except (_UsageError, HosidInputError) as exc:
