@@ -28,7 +28,10 @@ Decision rule (both thresholds are arguments):
 Every model's replicates use the same random streams (common random numbers), so
 that candidate gaps differ by their models and not by the noise of the replicates.
 The replicates are simulated at posterior draws, not at the point estimate, so the
-gap carries the parameters' uncertainty.
+gap carries the parameters' uncertainty.  A model whose posterior draws make more
+than ``R/2`` simulations diverge (the response escapes, e.g. a fitted damping law
+that turns negative at high speed) cannot produce a stationary record like the
+observed one: its gap is infinite (``null`` in ``report.json``).
 
 :func:`write_report` writes ``report.json`` (``named_effect``, ``gap_before``,
 ``gap_after``, ``candidates``, ``base``, ``final_model`` and more) and
@@ -328,8 +331,8 @@ def diagnose(
         Effects to try; default every one of :data:`hosid.terms.CANDIDATES` not in
         ``base``.
     replicates : int
-        Posterior-predictive replicates per model (at least 8; 20 resolves
-        p-values down to 1/21).
+        Posterior-predictive replicates per model (at least 8; the null of the gap
+        is estimated from their leave-one-out gaps).
     threshold : float
         The base gap is significant when its robust z (module docstring) reaches it.
     shrink : float

@@ -102,7 +102,7 @@ import numpy as np
 
 from . import costs as _costs
 from .errors import HosidInputError
-from .spectra import BlockSpectra
+from .spectra import BlockSpectra, block_layout
 from .windows import Window, get_window
 
 __all__ = [
@@ -191,29 +191,14 @@ def feature_spectra(
     if not (np.isfinite(dt) and dt > 0):
         raise HosidInputError(f"dt must be positive and finite; got {dt}")
     win = get_window(window)
-    n = F.shape[1]
-    M = round(block_seconds / dt)
-    if M < 16:
-        raise HosidInputError(
-            f"blocks of {block_seconds} s hold only {M} samples; use longer blocks"
-        )
-    N = n // M
-    if N < min_blocks:
-        raise HosidInputError(
-            f"record of {n} samples ({n * dt:g} s) is too short for "
-            f"{min_blocks} blocks of {M} samples ({block_seconds:g} s)"
-        )
-    T = M * dt
-    k_max = int(np.floor(omega_max * T / (2 * np.pi) + 1e-9))
-    if k_max < 3:
-        raise HosidInputError(f"omega_max = {omega_max} rad/s leaves fewer than 3 frequency bins")
-    if k_max >= M // 2:
-        raise HosidInputError(f"omega_max = {omega_max} rad/s is above the Nyquist frequency")
-    k_min = 1 if omega_min is None else max(1, int(np.ceil(omega_min * T / (2 * np.pi) - 1e-9)))
-    if k_min > k_max:
-        raise HosidInputError(
-            f"omega_min = {omega_min} rad/s is above omega_max = {omega_max} rad/s"
-        )
+    M, N, T, k_min, k_max = block_layout(
+        F.shape[1],
+        dt,
+        block_seconds=block_seconds,
+        omega_max=omega_max,
+        omega_min=omega_min,
+        min_blocks=min_blocks,
+    )
     p = F.shape[0]
     blocks = F[:, : N * M].reshape(p, N, M) * win.samples(M)
     K = min(M // 2 + 1, 3 * k_max + 1)

@@ -160,29 +160,62 @@ def block_spectra(
     is available on any trispectral domain.
     """
     win = get_window(window)
-    M = round(block_seconds / record.dt)
+    M, N, T, k_min, k_max = block_layout(
+        record.n,
+        record.dt,
+        block_seconds=block_seconds,
+        omega_max=omega_max,
+        omega_min=omega_min,
+        min_blocks=min_blocks,
+    )
+    F = features(record, derivative)
+    blocks = F[:, : N * M].reshape(5, N, M) * win.samples(M)
+    K = min(M // 2 + 1, k_store or 3 * k_max + 1)
+    Y = np.fft.rfft(blocks, axis=-1)[:, :, :K] * record.dt
+    return BlockSpectra(Y=Y, T=T, dt=record.dt, M=M, window=win, k_max=k_max, k_min=k_min)
+
+
+def block_layout(
+    n: int,
+    dt: float,
+    *,
+    block_seconds: float,
+    omega_max: float,
+    omega_min: float | None = None,
+    min_blocks: int = 8,
+) -> tuple[int, int, float, int, int]:
+    """Blocks and band of ``n`` samples at ``dt``: ``(M, N, T, k_min, k_max)``.
+
+    Raises
+    ------
+    HosidInputError
+        If a block holds fewer than 16 samples, the record fewer than ``min_blocks``
+        blocks, the band fewer than 3 bins, or ``omega_max`` is at or above the Nyquist
+        frequency or below ``omega_min``.
+    """
+    M = round(block_seconds / dt)
     if M < 16:
         raise HosidInputError(
             f"blocks of {block_seconds} s hold only {M} samples; use longer blocks"
         )
-    N = record.n // M
+    N = n // M
     if N < min_blocks:
         raise HosidInputError(
-            f"record of {record.n} samples ({record.duration:g} s) is too short for "
+            f"record of {n} samples ({n * dt:g} s) is too short for "
             f"{min_blocks} blocks of {M} samples ({block_seconds:g} s)"
         )
-    T = M * record.dt
+    T = M * dt
     k_max = int(np.floor(omega_max * T / (2 * np.pi) + 1e-9))
     if k_max < 3:
         raise HosidInputError(f"omega_max = {omega_max} rad/s leaves fewer than 3 frequency bins")
     if k_max >= M // 2:
         raise HosidInputError(f"omega_max = {omega_max} rad/s is above the Nyquist frequency")
     k_min = 1 if omega_min is None else max(1, int(np.ceil(omega_min * T / (2 * np.pi) - 1e-9)))
-    F = features(record, derivative)
-    blocks = F[:, : N * M].reshape(5, N, M) * win.samples(M)
-    K = min(M // 2 + 1, k_store or 3 * k_max + 1)
-    Y = np.fft.rfft(blocks, axis=-1)[:, :, :K] * record.dt
-    return BlockSpectra(Y=Y, T=T, dt=record.dt, M=M, window=win, k_max=k_max, k_min=k_min)
+    if k_min > k_max:
+        raise HosidInputError(
+            f"omega_min = {omega_min} rad/s is above omega_max = {omega_max} rad/s"
+        )
+    return M, N, T, k_min, k_max
 
 
 @dataclass(frozen=True)
