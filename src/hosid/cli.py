@@ -347,7 +347,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     _results.save(tree, fit_dir / "posterior.nc")
     paths = _write_fit_report(tree, fit_dir)
     _print_summary(_results.summarize(tree, warn=False))
-    print("wrote " + ", ".join(str(p) for p in [fit_dir / "posterior.nc", *paths]))
+    print("wrote " + ", ".join(str(p) for p in paths))
     return 0
 
 
