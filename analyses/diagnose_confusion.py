@@ -32,7 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
-PAPER = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0}
+from hosid.simulate import PAPER_PARAMS
+
+PAPER = PAPER_PARAMS
 LINEAR = {"a1": 3.0, "a2": 25.0, "S0": 100.0}
 
 #: name -> (base, true simulator parameters, hidden effect or None, strength label)

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from hosid.cli import main as hosid
+from hosid.simulate import PAPER_PARAMS
 
 
 def main(argv=None) -> int:
@@ -37,7 +38,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     duration, replicates = (1000.0, 8) if a.quick else (a.duration, 20)
     rec = out / "rec.csv"
-    truth = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "b2": a.b2}
+    truth = {**PAPER_PARAMS, "b2": a.b2}
 
     simulate = ["simulate", "--b2", str(a.b2), "--duration", str(duration)]
     simulate += ["--seed", str(a.seed), "--out", str(rec)]

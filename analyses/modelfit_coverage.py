@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from hosid.modelfit import fit_model
-from hosid.simulate import simulate
+from hosid.simulate import PAPER_PARAMS, simulate
 from hosid.terms import Model
 
-PAPER = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0}
+PAPER = PAPER_PARAMS
 LINEAR = {"a1": 3.0, "a2": 25.0, "S0": 100.0}
 CASES = {
     "paper": PAPER,

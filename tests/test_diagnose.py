@@ -16,9 +16,9 @@ from hosid.cli import main
 from hosid.diagnose import diagnose, write_report
 from hosid.errors import HosidInputError
 from hosid.records import write_record
-from hosid.simulate import simulate
+from hosid.simulate import PAPER_PARAMS, simulate
 
-PAPER = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0}
+PAPER = PAPER_PARAMS
 
 
 def _record(params, seed, duration=2000.0):

@@ -12,10 +12,10 @@ import pytest
 
 from hosid.errors import HosidInputError
 from hosid.modelfit import estimate_model, fit_model
-from hosid.simulate import simulate
+from hosid.simulate import PAPER_PARAMS, simulate
 from hosid.terms import Model
 
-PAPER = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0}
+PAPER = PAPER_PARAMS
 
 
 def _record(params, seed, duration=2000.0):

@@ -57,8 +57,9 @@ from .discrepancy import MeasureSpec, gaps, measures
 from .errors import HosidInputError
 from .modelfit import ModelFit, fit_model
 from .records import Record
+from .report import _write
 from .results import _jsonable
-from .terms import CANDIDATES, Model, get_term
+from .terms import CANDIDATES, ColouredExcitation, Model, get_term
 
 __all__ = [
     "Diagnosis",
@@ -180,7 +181,13 @@ def check_model(
             "p_value": 0.0,
             "n_replicates": len(reps),
         }
-    spectral = spectral_costs(record, model, fit.estimate, omega_n=spec.omega_n)
+    spectral = spectral_costs(
+        record,
+        model,
+        fit.estimate,
+        omega_n=spec.omega_n,
+        block_seconds=fit_options.get("block_seconds", 20.48),
+    )
     return ModelCheck(
         fit=fit,
         gap=gap,
@@ -193,7 +200,12 @@ def check_model(
 
 
 def spectral_costs(
-    record: Record, model: Model, estimate: dict[str, float], *, omega_n: float
+    record: Record,
+    model: Model,
+    estimate: dict[str, float],
+    *,
+    omega_n: float,
+    block_seconds: float = 20.48,
 ) -> dict[str, float]:
     r"""The well-scaled, centred costs of the force inferred with ``estimate``.
 
@@ -206,13 +218,13 @@ def spectral_costs(
     from . import polyspectra as ps
 
     F = model.features(record)
-    T = 20.48
+    T = block_seconds
     fs = ps.feature_spectra(
         F, record.dt, block_seconds=T, omega_max=1.6 * omega_n, omega_min=1.5 * 2 * np.pi / T
     )
     lam = np.array([1.0] + [estimate[p] for p in model.drift_params])
     wc = estimate.get("wc")
-    shape = None if wc is None else (lambda w: wc**2 / (wc**2 + w**2))
+    shape = None if wc is None else (lambda w: ColouredExcitation.shape(w, wc))
     S0 = estimate["S0"]
     out = {
         "J2W": float(ps.j2w(fs, lam, S0, shape)),
@@ -644,9 +656,6 @@ def write_report(diag: Diagnosis, out_dir: str | Path) -> tuple[Path, Path]:
         "measures": _png(measures_plot(diag, moved_measures(diag))),
     }
     paths = (out / "report.json", out / "report.html")
-    try:
-        paths[0].write_text(json.dumps(rep, indent=1), encoding="utf-8")
-        paths[1].write_text(_html(rep, images), encoding="utf-8")
-    except OSError as exc:
-        raise HosidInputError(f"cannot write into {out}: {exc.strerror or exc}") from None
+    _write(paths[0], json.dumps(rep, indent=1))
+    _write(paths[1], _html(rep, images))
     return paths

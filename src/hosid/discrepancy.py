@@ -75,8 +75,9 @@ import numpy as np
 
 from .errors import HosidInputError
 from .records import Record
-from .spectra import derivatives
+from .spectra import block_fft, derivatives
 from .terms import drift_from_params
+from .windows import get_window
 
 __all__ = [
     "ENERGY_LEVELS",
@@ -95,7 +96,7 @@ V_LEVELS: tuple[float, ...] = (0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.99)
 #: Probability levels of the quantiles of log(E / mean E).
 ENERGY_LEVELS: tuple[float, ...] = (0.05, 0.25, 0.5, 0.75, 0.9, 0.99)
 
-_HANN_K2 = 3.0 / 8.0
+_HANN = get_window("hann")
 
 DriftLike = Callable[[np.ndarray, np.ndarray], np.ndarray] | Mapping[str, float] | None
 
@@ -219,21 +220,15 @@ class MeasureSpec:
 
 
 # --------------------------------------------------------------------- helpers
-def _hann(M: int) -> np.ndarray:
-    return 0.5 * (1.0 - np.cos(2.0 * math.pi * np.arange(M) / M))
-
-
 def _block_fft(y: np.ndarray, spec: MeasureSpec) -> np.ndarray:
     """Hann-windowed block transforms, shape (N, M // 2 + 1)."""
-    M = spec.block
-    N = y.size // M
-    return np.fft.rfft(y[: N * M].reshape(N, M) * _hann(M), axis=1) * spec.dt
+    return block_fft(y, spec.block, spec.dt, _HANN)
 
 
 def _psd(Y: np.ndarray, spec: MeasureSpec) -> np.ndarray:
     r"""Two-sided PSD estimate :math:`\overline{|Y|^2}/(2\pi T k_2)` per bin."""
     T = spec.block * spec.dt
-    return np.mean(np.abs(Y) ** 2, axis=0) / (2.0 * math.pi * T * _HANN_K2)
+    return np.mean(np.abs(Y) ** 2, axis=0) / (2.0 * math.pi * T * _HANN.k2)
 
 
 def _band_log(P: np.ndarray, edges: Sequence[float], spec: MeasureSpec) -> np.ndarray:

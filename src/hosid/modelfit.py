@@ -91,8 +91,9 @@ from scipy.optimize import minimize_scalar, nnls
 
 from .errors import HosidInputError
 from .records import Record
-from .spectra import derivatives
-from .terms import Model, RecordScales
+from .spectra import block_fft, block_periodogram, derivatives
+from .terms import ColouredExcitation, Model, RecordScales
+from .windows import get_window
 
 __all__ = ["ModelEstimate", "ModelFit", "estimate_model", "fit_model"]
 
@@ -116,6 +117,7 @@ _Q_TESTS = (
     (lambda v: v**3, lambda v: 3.0 * v**2),
 )
 _LOG_PARAMS = ("S0", "wc")
+_WINDOW = get_window("hann")
 
 
 @dataclass(frozen=True)
@@ -149,13 +151,6 @@ class _Prepared:
 
 def _block_mean(a: np.ndarray, B: int, M: int) -> np.ndarray:
     return a[..., : B * M].reshape(*a.shape[:-1], B, M).mean(axis=-1)
-
-
-def _periodogram(y: np.ndarray, B: int, M: int, dt: float) -> np.ndarray:
-    r"""Two-sided block periodogram :math:`|X_r(\\omega_k)|^2/(2\\pi T k_2)`, (B, M//2+1)."""
-    win = 0.5 * (1.0 - np.cos(2.0 * np.pi * np.arange(M) / M))
-    X = np.fft.rfft(y[: B * M].reshape(B, M) * win, axis=1) * dt
-    return np.abs(X) ** 2 / (2.0 * np.pi * M * dt * 0.375)
 
 
 def _noise_fit(P: np.ndarray, omega: np.ndarray) -> tuple[float, float]:
@@ -192,7 +187,7 @@ def _prepare(
     noise = None
     x = y
     if "measurement_noise" in names:
-        P = _periodogram(y, B, M, dt)
+        P = block_periodogram(y, M, dt, _WINDOW)
         k_tail = np.flatnonzero((omega >= 3.0 * wn) & (omega <= 0.9 * wnyq))
         if k_tail.size < 4:
             raise HosidInputError(
@@ -241,9 +236,7 @@ def _prepare(
         raise HosidInputError("too few frequency bins below 2 w_n: use longer blocks")
     k_wide = np.flatnonzero((omega >= 0.5 * wn) & (omega <= 0.5 * wnyq))
     K = int(max(k_band.max(), k_wide.max() if k_wide.size else 0)) + 1
-    win = 0.5 * (1.0 - np.cos(2.0 * np.pi * np.arange(M) / M))
-    rows = np.concatenate([a[None], phi])
-    Y = np.fft.rfft(rows[:, : B * M].reshape(rows.shape[0], B, M) * win, axis=-1)[..., :K] * dt
+    Y = block_fft(np.concatenate([a[None], phi]), M, dt, _WINDOW, K)
     return _Prepared(
         model=model,
         drift=drift,
@@ -259,7 +252,7 @@ def _prepare(
         tail=tail,
         k_tail=k_tail,
         T=T,
-        k2=0.375,
+        k2=_WINDOW.k2,
         omega_n=wn,
         dt=dt,
         noise=noise,
@@ -270,7 +263,7 @@ def _prepare(
 def _shape(omega: np.ndarray, wc: float | None) -> np.ndarray:
     if wc is None:
         return np.ones_like(omega)
-    return wc**2 / (wc**2 + omega**2)
+    return ColouredExcitation.shape(omega, wc)
 
 
 def _alias_factor(omega: np.ndarray, wc: float | None, wnyq: float) -> np.ndarray:

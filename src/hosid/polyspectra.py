@@ -102,7 +102,7 @@ import numpy as np
 
 from . import costs as _costs
 from .errors import HosidInputError
-from .spectra import BlockSpectra, block_layout
+from .spectra import BlockSpectra, block_fft, block_layout
 from .windows import Window, get_window
 
 __all__ = [
@@ -191,7 +191,7 @@ def feature_spectra(
     if not (np.isfinite(dt) and dt > 0):
         raise HosidInputError(f"dt must be positive and finite; got {dt}")
     win = get_window(window)
-    M, N, T, k_min, k_max = block_layout(
+    M, T, k_min, k_max = block_layout(
         F.shape[1],
         dt,
         block_seconds=block_seconds,
@@ -199,10 +199,7 @@ def feature_spectra(
         omega_min=omega_min,
         min_blocks=min_blocks,
     )
-    p = F.shape[0]
-    blocks = F[:, : N * M].reshape(p, N, M) * win.samples(M)
-    K = min(M // 2 + 1, 3 * k_max + 1)
-    Y = np.fft.rfft(blocks, axis=-1)[:, :, :K] * dt
+    Y = block_fft(F, M, dt, win, min(M // 2 + 1, 3 * k_max + 1))
     return FeatureSpectra(Y=Y, T=T, dt=dt, M=M, window=win, k_min=k_min, k_max=k_max)
 
 

@@ -160,7 +160,7 @@ def block_spectra(
     is available on any trispectral domain.
     """
     win = get_window(window)
-    M, N, T, k_min, k_max = block_layout(
+    M, T, k_min, k_max = block_layout(
         record.n,
         record.dt,
         block_seconds=block_seconds,
@@ -169,10 +169,35 @@ def block_spectra(
         min_blocks=min_blocks,
     )
     F = features(record, derivative)
-    blocks = F[:, : N * M].reshape(5, N, M) * win.samples(M)
     K = min(M // 2 + 1, k_store or 3 * k_max + 1)
-    Y = np.fft.rfft(blocks, axis=-1)[:, :, :K] * record.dt
+    Y = block_fft(F, M, record.dt, win, K)
     return BlockSpectra(Y=Y, T=T, dt=record.dt, M=M, window=win, k_max=k_max, k_min=k_min)
+
+
+def block_fft(
+    F: np.ndarray, M: int, dt: float, window: str | Window = "hann", K: int | None = None
+) -> np.ndarray:
+    r"""Windowed block transforms :math:`Y_r(\omega_k) = \Delta t\sum_n D_n F_{rn}
+    e^{-2\pi i kn/M}` of the last axis: ``(..., n) -> (..., n // M, K)``.
+
+    ``K`` bins are kept (default ``M // 2 + 1``); samples past the last whole block
+    are dropped.
+    """
+    win = get_window(window)
+    F = np.asarray(F, dtype=float)
+    N = F.shape[-1] // M
+    blocks = F[..., : N * M].reshape(*F.shape[:-1], N, M) * win.samples(M)
+    Y = np.fft.rfft(blocks, axis=-1) * dt
+    return Y if K is None else Y[..., :K]
+
+
+def block_periodogram(y: np.ndarray, M: int, dt: float, window: str | Window = "hann"):
+    r"""Per-block two-sided periodogram :math:`|Y_r(\omega_k)|^2/(2\pi T k_2)`,
+    shape ``(n // M, M // 2 + 1)``; its block mean estimates the two-sided spectrum.
+    """
+    win = get_window(window)
+    Y = block_fft(y, M, dt, win)
+    return (Y.real**2 + Y.imag**2) / (2.0 * np.pi * M * dt * win.k2)
 
 
 def block_layout(
@@ -183,8 +208,8 @@ def block_layout(
     omega_max: float,
     omega_min: float | None = None,
     min_blocks: int = 8,
-) -> tuple[int, int, float, int, int]:
-    """Blocks and band of ``n`` samples at ``dt``: ``(M, N, T, k_min, k_max)``.
+) -> tuple[int, float, int, int]:
+    """Block size and band for ``n`` samples at ``dt``: ``(M, T, k_min, k_max)``.
 
     Raises
     ------
@@ -215,7 +240,7 @@ def block_layout(
         raise HosidInputError(
             f"omega_min = {omega_min} rad/s is above omega_max = {omega_max} rad/s"
         )
-    return M, N, T, k_min, k_max
+    return M, T, k_min, k_max
 
 
 @dataclass(frozen=True)

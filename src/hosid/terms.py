@@ -43,7 +43,7 @@ from .errors import HosidInputError
 from .priors import LogUniform, Prior, Uniform
 from .records import Record
 from .simulate import simulate as _simulate
-from .spectra import derivatives
+from .spectra import block_periodogram, derivatives
 
 __all__ = [
     "ALIASES",
@@ -133,10 +133,7 @@ class RecordScales:
         if not (sigma_x > 0 and sigma_v > 0):
             raise HosidInputError("record is constant: its scales are zero")
         M = max(16, min(round(block_seconds / record.dt), record.n))
-        N = record.n // M
-        win = 0.5 * (1.0 - np.cos(2.0 * np.pi * np.arange(M) / M))
-        A = np.fft.rfft(a[: N * M].reshape(N, M) * win, axis=1) * record.dt
-        P = np.mean(np.abs(A) ** 2, axis=0) / (2.0 * np.pi * M * record.dt * 0.375)
+        P = block_periodogram(a, M, record.dt).mean(axis=0)
         omega = 2.0 * np.pi * np.fft.rfftfreq(M, record.dt)
         wn, wnyq = sigma_v / sigma_x, math.pi / record.dt
         lo, hi = min(3.0 * wn, 0.25 * wnyq), min(5.0 * wn, 0.5 * wnyq)
@@ -375,6 +372,12 @@ class ColouredExcitation(Term):
     params: ClassVar[tuple[str, ...]] = ("wc",)
     kind: ClassVar[str] = "excitation"
     latex: ClassVar[str] = r"\frac{S_0\,\omega_c^2}{\omega_c^2 + \omega^2}"
+
+    @staticmethod
+    def shape(omega, wc: float) -> np.ndarray:
+        r"""The spectral shape :math:`L(\omega) = \omega_c^2/(\omega_c^2 + \omega^2)`."""
+        omega = np.asarray(omega, dtype=float)
+        return wc**2 / (wc**2 + omega**2)
 
     def default_priors(self, scales: RecordScales) -> dict[str, Prior]:
         """``wc ~ logU(w_n / 10, pi / dt)``."""
