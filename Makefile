@@ -41,10 +41,13 @@ bench: $(STAMP)
 		echo "make bench: no benchmarks/*.py yet" >&2; exit 1; fi
 	$(PY) -m pytest -q --benchmark-only benchmarks
 
+# The statistical studies (tens of minutes): the information limit per regime, the
+# efficiency and calibration of the default fit and of --cost J4A, the diagnose confusion.
 analyses: $(STAMP)
-	@if [ ! -f analyses/run_all.py ]; then \
-		echo "make analyses: analyses/run_all.py does not exist yet" >&2; exit 1; fi
-	$(PY) analyses/run_all.py
+	$(PY) analyses/crb.py
+	$(PY) analyses/efficiency_study.py --cost default
+	$(PY) analyses/efficiency_study.py --cost J4A
+	$(PY) analyses/diagnose_confusion.py
 
 clean:
 	rm -rf $(VENV) demo-out analyses/out .pytest_cache .benchmarks build src/*.egg-info

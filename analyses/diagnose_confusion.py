@@ -1,7 +1,7 @@
 """Issue 4: the confusion table of the discrepancy workflow (hidden vs named effect).
 
 For every scenario (one hidden effect that the base model lacks, or none) records are
-simulated, ``hosid.diagnose`` is run with its defaults, and the named effect, the
+simulated, ``hosid.check.diagnose.diagnose`` is run with its defaults, and the named effect, the
 gaps before and after, and whether the final model's 90 % intervals cover the true
 parameters are written to ``confusion.csv`` (one row per record, appended as soon as
 it is done) and summarized in ``confusion.md``.
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hosid.simulate import PAPER_PARAMS
+from hosid.model import PAPER_PARAMS
 
 PAPER = PAPER_PARAMS
 LINEAR = {"a1": 3.0, "a2": 25.0, "S0": 100.0}
@@ -134,8 +134,8 @@ FIELDS = (
 
 def run_one(args: tuple[str, int, int, float, int]) -> dict:
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    from hosid.diagnose import diagnose
-    from hosid.simulate import simulate
+    from hosid.check.diagnose import diagnose
+    from hosid.model import simulate
 
     name, index, seed, duration, replicates = args
     base, truth, hidden, _ = SCENARIOS[name]

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from hosid.cli import main as hosid
-from hosid.simulate import PAPER_PARAMS
+from hosid.model import PAPER_PARAMS
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,26 @@
+"""Model checking: discrepancy measures, posterior-predictive gaps and ``diagnose``.
+
+:mod:`~hosid.check.measures` (the statistics a missing effect leaves its mark on),
+:mod:`~hosid.check.gaps` (the record's standardized distance from replicates),
+:mod:`~hosid.check.posterior` (parameter draws for the replicates),
+:mod:`~hosid.check.model_check` (one model against the record) and
+:mod:`~hosid.check.diagnose` (the workflow that names the missing effect: import
+``diagnose`` from there, so that the submodule's name stays the module's).
+"""
+
+from .diagnose import Diagnosis
+from .gaps import gaps, robust_z
+from .measures import MeasureSpec, compare, drift_function, measures
+from .model_check import ModelCheck, check_model
+
+__all__ = [
+    "Diagnosis",
+    "MeasureSpec",
+    "ModelCheck",
+    "check_model",
+    "compare",
+    "drift_function",
+    "gaps",
+    "measures",
+    "robust_z",
+]

@@ -1,0 +1,178 @@
+r"""The likelihood-component protocol and what the components share.
+
+A component turns the record's state into *estimating equations*: a vector of
+:math:`k` block means :math:`\bar m(\theta) = \frac1B\sum_b m_b(\theta)` whose
+expectation vanishes at the true parameters.  :meth:`Component.prepare` computes, once
+per record, the sufficient statistics that make :math:`\bar m(\theta)` a cheap
+polynomial-like function of :math:`\theta` (evaluating it never touches the samples
+again) and the per-block *influence* :math:`u_b` at a pilot value :math:`\tilde\theta`,
+from which :mod:`hosid.inference.gmm` builds the covariance of :math:`\bar m` and the
+calibrated quasi-likelihood
+
+.. math:: \ell(\theta) = -\frac{B}{2}\,\bar m(\theta)^{\mathsf T}\,\hat\Sigma^{-1}\,
+    \bar m(\theta), \qquad \hat\Sigma = \widehat{\mathrm{Cov}}(u_b).
+
+Shared here: the excitation shape and effective level of a model, the velocity
+restoration :math:`s^2` of :mod:`hosid.state`, and the block transforms of the
+inferred force's features (eq 45), :math:`Y_0 = \ddot x`, :math:`Y_k = \phi_k` with
+velocity features restored as :math:`\phi + \tfrac12 s^2\phi''`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import partial
+from typing import Protocol
+
+import numpy as np
+
+from ..model.model import Model
+from ..model.terms import ColouredExcitation
+from ..state import RecordState, velocity_deficit
+
+__all__ = [
+    "Component",
+    "Excitation",
+    "Moments",
+    "feature_ffts",
+    "restoration",
+]
+
+
+@dataclass(frozen=True)
+class Moments:
+    """A component prepared on one record.
+
+    Attributes
+    ----------
+    component : str
+        The component's name.
+    labels : tuple of str
+        One label per estimating equation.
+    mean : callable
+        ``theta (..., p) -> (..., k)``: the block-mean estimating equations.
+    influence : ndarray, shape (B, k)
+        Per-block influence at the pilot, centred.
+    info : dict
+        What the component used (band, domain, ...), for the report.
+    """
+
+    component: str
+    labels: tuple[str, ...]
+    mean: Callable[[np.ndarray], np.ndarray]
+    influence: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    @property
+    def k(self) -> int:
+        """Number of estimating equations."""
+        return len(self.labels)
+
+
+class Component(Protocol):
+    """A likelihood component: ``name`` and :meth:`prepare`."""
+
+    name: str
+
+    def prepare(self, state: RecordState, model: Model, pilot: np.ndarray) -> Moments:
+        """Sufficient statistics of ``state`` for ``model``, weights frozen at ``pilot``."""
+        ...  # pragma: no cover
+
+
+class Excitation:
+    r"""The excitation of a model: spectral shape :math:`L(\omega;\theta)` and the
+    force terms of the generator identities, :math:`E[\dot xg] = \pi S_0\rho` and
+    :math:`E[xg] = \pi S_0\rho_x`.
+
+    For white noise :math:`L = 1`, :math:`\rho = 1`.  For coloured excitation
+    :math:`L = \omega_c^2/(\omega_c^2+\omega^2)` and, for jointly Gaussian velocity and
+    force (Stein's lemma), :math:`E[q'(\dot x)g] = E[q''(\dot x)]\,E[\dot x g]` with
+    :math:`E[\dot xg] = S_0\int\mathrm{Re}[i\omega H(\omega)]L(\omega)d\omega =
+    \pi S_0\rho` for the equivalent linear system :math:`H = 1/(k - \omega^2 + ic\omega)`
+    at the pilot; likewise :math:`E[h(x)g] = E[h'(x)]\,E[xg]`.
+    """
+
+    def __init__(self, model: Model, pilot: np.ndarray, sigma_v: float, sigma_x: float):
+        self.model = model
+        self.i_S0 = model.index("S0")
+        self.i_wc = model.index("wc") if model.has("wc") else None
+        c = max(float(model.equivalent_damping(pilot, sigma_v)), 1e-6)
+        k = (sigma_v / sigma_x) ** 2
+        self.linear = (c, k)  #: the equivalent linear system (damping c, stiffness k)
+
+    def S0(self, theta: np.ndarray) -> np.ndarray:
+        """The level :math:`S_0`."""
+        return np.asarray(theta)[..., self.i_S0]
+
+    def shape(self, omega: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        r""":math:`L(\omega)` for each ``theta`` (``(..., K)``)."""
+        if self.i_wc is None:
+            return np.ones(np.shape(theta)[:-1] + np.shape(omega))
+        wc = np.asarray(theta)[..., self.i_wc, None]
+        return ColouredExcitation.shape(omega, wc)
+
+    def rho(self, theta: np.ndarray) -> np.ndarray:
+        r"""Input-power ratio :math:`\rho = E[\dot xg]/\pi S_0` (1 for white noise)."""
+        th = np.asarray(theta)
+        if self.i_wc is None:
+            return np.ones(th.shape[:-1])
+        c, k = self.linear
+        wc = th[..., self.i_wc]
+        # (1/pi) int Re[i w H] wc^2/(wc^2 + w^2) dw for H = 1/(k - w^2 + icw)
+        # (the stationary Lyapunov solution of the system driven through the low-pass)
+        return wc**2 / (wc**2 + c * wc + k)
+
+    def rho_x(self, theta: np.ndarray) -> np.ndarray:
+        r""":math:`E[xg]/\pi S_0` (0 for white noise; :math:`\omega_c/(\omega_c^2 +
+        c\omega_c + k)` for the low-pass, same Lyapunov solution).
+        """
+        th = np.asarray(theta)
+        if self.i_wc is None:
+            return np.zeros(th.shape[:-1])
+        c, k = self.linear
+        wc = th[..., self.i_wc]
+        return wc / (wc**2 + c * wc + k)
+
+    def deficit(self, theta: np.ndarray, dt: float) -> float:
+        """The velocity restoration :math:`s^2` at one ``theta``."""
+        S0 = float(self.S0(theta))
+        if self.i_wc is None:
+            return float(velocity_deficit(S0, dt))
+        wc = float(np.asarray(theta)[self.i_wc])
+        return float(velocity_deficit(S0, dt, lambda w: ColouredExcitation.shape(w, wc)))
+
+
+def restoration(state: RecordState, model: Model, pilot: np.ndarray) -> tuple[float, float]:
+    """``(s2, eps)``: the velocity restoration at the pilot and the width at which
+    generalized functions are regularized (at least 5 % of the velocity's sd).
+    """
+    s2 = Excitation(model, pilot, state.scales.sigma_v, state.scales.sigma_x).deficit(
+        pilot, state.dt
+    )
+    if state.noise is not None:  # what the Wiener filter removed below the Nyquist frequency
+        s2 += state.noise["extra_deficit"]
+    return s2, max(math.sqrt(max(s2, 0.0)), 0.05 * state.scales.sigma_v)
+
+
+def _feature(term, s2: float, eps: float, blocks: dict) -> np.ndarray:
+    """A drift feature on the blocks, velocity features restored by ``s2``."""
+    if term.variable == "v":
+        return term.smoothed(blocks["v"], s2, eps)
+    return term.phi(blocks["x"])
+
+
+def feature_ffts(state: RecordState, model: Model, s2: float, bins: np.ndarray) -> np.ndarray:
+    r"""Block transforms of :math:`\ddot x` and of every drift feature,
+    ``(1 + n_drift, B, K)`` on ``bins`` (velocity features restored by :math:`s^2`).
+    """
+    eps = max(math.sqrt(s2), 0.05 * state.scales.sigma_v)
+    rows = [state.block_fft("a", lambda b: b["a"], bins)]
+    for t in model.drift_terms:
+        if t.variable == "v":
+            key = (t.name, round(s2, 12), state.centred)
+        else:
+            key = (t.name, state.centred)
+        rows.append(state.block_fft(key, partial(_feature, t, s2, eps), bins))
+    return np.stack(rows)

@@ -1,0 +1,145 @@
+r"""Generator identities: the score of the drift, from the displacement alone.
+
+For :math:`\ddot x + g(x,\dot x) = w`, :math:`g = \sum_k\theta_k\phi_k` and white
+:math:`w` of intensity :math:`2D`, :math:`D = \pi S_0`, Itô's formula for a function
+:math:`G_j(x, \dot x)` with :math:`\partial G_j/\partial\dot x = \phi_j` gives over a
+block :math:`[t_b, t_{b+1}]`
+
+.. math::
+
+    \int\phi_j\,\sigma\,dW = \Delta G_j - \int\dot x\,\partial_xG_j\,dt
+        + \sum_k\theta_k\int\phi_j\phi_k\,dt - D\int\partial_{\dot x}\phi_j\,dt,
+
+the block's share of the Girsanov score of :math:`\theta_j` (see
+:mod:`hosid.model.information`): a martingale increment, so blocks are uncorrelated
+whatever their length, and an estimator built on these equations reaches the
+Cramer-Rao bound up to the velocity's sampling.  Per drift term:
+
+- velocity feature :math:`\phi(\dot x)`: :math:`G_j = \int_0^{\dot x}\phi`, equation
+  :math:`\overline{\phi_j g} - D\,\overline{\phi_j'}`;
+- displacement feature :math:`\phi(x)`: :math:`G_j = \phi(x)\dot x`, equation
+  :math:`\overline{\phi_j g} - \overline{\phi_j'(x)\dot x^2}`;
+- the constant :math:`-1` (mean force): :math:`G_j = -\dot x`, equation :math:`-\bar g`;
+
+plus :math:`\Delta G_j/T_b`.  A term may replace its feature by a smooth test function
+:math:`\psi_j` (Coulomb friction: :math:`\tanh(\dot x/w)` for
+:math:`\mathrm{sign}\,\dot x`, :meth:`hosid.model.terms.DriftTerm.test`); the identity
+stays exact, only its efficiency changes.  For the paper model these are the energy balance
+(:math:`a_1\overline{\dot x^2} + n_1\overline{|\dot x|^3} = \pi S_0`), the
+velocity-weighted identity that separates :math:`a_1` from :math:`n_1`
+(:math:`a_1\overline{|\dot x|^3} + n_1\overline{\dot x^4} = 2\pi S_0\overline{|\dot x|}`)
+and the two moment equations of the stiffness (NOTES.md).
+
+Every velocity statistic is restored for the power the sampled record lacks above the
+Nyquist frequency (:mod:`hosid.state`): :math:`\overline{h} \to \overline{h + \tfrac12
+s^2h''}`, so :math:`\overline{\phi_j\phi_k}` gains
+:math:`\tfrac12s^2(\phi_j''\phi_k + 2\phi_j'\phi_k' + \phi_j\phi_k'')` (e.g.
+:math:`\overline{\dot x^4} + 6s^2\overline{\dot x^2}`).  Under coloured excitation
+:math:`D` becomes :math:`\pi S_0\rho(\omega_c)`
+(:class:`hosid.components.base.Excitation`), and the restoring identities gain the
+force term :math:`\pi S_0\rho_x\overline{\phi_j'(x)}` (zero for white noise).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+
+from ..model.model import Model
+from ..state import RecordState
+from .base import Excitation, Moments, restoration
+
+__all__ = ["Identities"]
+
+
+@dataclass(frozen=True)
+class Identities:
+    """The generator identities of every drift term (``which="all"``), or of the
+    restoring terms only (``which="restoring"``: the paper's moment method).
+    """
+
+    which: str = "all"
+    name: str = "identities"
+
+    def statistics(self, state: RecordState, model: Model, pilot: np.ndarray):
+        """Per-block ``(Q, const, e, ex)`` of the identities, their term indices and
+        ``s2``: block ``b``'s equation ``j`` is ``const + Q @ theta_drift - pi S0 (rho e +
+        rho_x ex)`` (:class:`hosid.components.base.Excitation`).
+        """
+        if self.which not in ("all", "restoring"):
+            raise ValueError(f"unknown identity set {self.which!r}: 'all' or 'restoring'")
+        s2, eps = restoration(state, model, pilot)
+        blk = state.blocks
+        x, v = blk["x"], blk["v"]
+        terms = model.drift_terms
+        rows = [j for j, t in enumerate(terms) if self.which == "all" or t.variable != "v"]
+        L = state.layout
+        nxt = np.minimum(np.arange(1, L.B + 1) * L.M, state.record.n - 1)
+        first = np.arange(L.B) * L.M
+
+        sv = state.scales.sigma_v
+
+        def vder(t, order, fn):  # v-derivatives of a feature or test function (0 for x)
+            if order == 0:
+                return fn(t)(v if t.variable == "v" else x)
+            return fn(t)(v, order, eps) if t.variable == "v" else np.zeros_like(x)
+
+        d = [[vder(t, o, lambda t: t.phi) for o in range(3)] for t in terms]
+        q = [
+            [vder(t, o, lambda t: partial(t.test, scale=sv)) for o in range(4)]
+            if t.variable == "v"
+            else d[j]
+            for j, t in enumerate(terms)
+        ]
+        p = len(terms)
+        Q = np.empty((L.B, len(rows), p))
+        for a, j in enumerate(rows):
+            for k in range(p):
+                prod = q[j][0] * d[k][0] + 0.5 * s2 * (
+                    q[j][2] * d[k][0] + 2 * q[j][1] * d[k][1] + q[j][0] * d[k][2]
+                )
+                Q[:, a, k] = prod.mean(axis=1)
+        const = np.empty((L.B, len(rows)))
+        e = np.zeros((L.B, len(rows)))
+        ex = np.zeros((L.B, len(rows)))
+        for a, j in enumerate(rows):
+            t = terms[j]
+            if t.variable == "v":
+                G = t.test_antiderivative(state.v, scale=sv)
+                r = 0.0
+                e[:, a] = (q[j][1] + 0.5 * s2 * q[j][3]).mean(axis=1)
+            else:
+                G = t.phi(state.x) * state.v
+                r = (t.phi(x, 1) * (v**2 + s2)).mean(axis=1) if t.variable == "x" else 0.0
+                ex[:, a] = t.phi(x, 1).mean(axis=1)
+            const[:, a] = (G[nxt] - G[first]) / L.T - r
+        return Q, const, e, ex, rows, s2
+
+    def prepare(self, state: RecordState, model: Model, pilot: np.ndarray) -> Moments:
+        """Block statistics of the identities (module docstring)."""
+        Q, const, e, ex, rows, s2 = self.statistics(state, model, pilot)
+        terms = model.drift_terms
+        exc = Excitation(model, pilot, state.scales.sigma_v, state.scales.sigma_x)
+        nd = model.n_drift
+        Qm, cm, em, exm = Q.mean(0), const.mean(0), e.mean(0), ex.mean(0)
+
+        def mean(theta):
+            th = np.asarray(theta, dtype=float)
+            D = (np.pi * exc.S0(th))[..., None]
+            force = D * (exc.rho(th)[..., None] * em + exc.rho_x(th)[..., None] * exm)
+            return cm + th[..., :nd] @ Qm.T - force
+
+        th0 = np.asarray(pilot, dtype=float)
+        D0 = np.pi * float(exc.S0(th0))
+        force0 = D0 * (float(exc.rho(th0)) * e + float(exc.rho_x(th0)) * ex)
+        per_block = const + np.einsum("bjk,k->bj", Q, th0[:nd]) - force0
+        labels = tuple(f"identity {terms[j].params[0]}" for j in rows)
+        return Moments(
+            component=self.name,
+            labels=labels,
+            mean=mean,
+            influence=per_block - per_block.mean(axis=0),
+            info={"velocity_restoration_s2": s2, "identities": list(labels)},
+        )

@@ -1,0 +1,153 @@
+r"""J2: the second-order spectrum of the inferred force (paper eqs 21, 47-50).
+
+With :math:`\lambda = (1, \theta_{drift})` and the block transforms :math:`Y_{jr}` of
+:math:`\ddot x` and the drift features (:func:`hosid.components.base.feature_ffts`),
+the inferred force of block :math:`r` is :math:`X_r(\omega) = \sum_j\lambda_jY_{jr}`
+(eq 45) and, on the band's bins :math:`\omega_k`, its standardized periodogram
+
+.. math:: h_{rk}(\theta) = \frac{|X_r(\omega_k)|^2}{2\pi T k_2 S_0 L(\omega_k)} - 1
+
+has expectation 0 under the model (eq 21: :math:`\hat V^a = k_2S_0` for white noise,
+:math:`L = 1`) and unit variance.  The well-scaled J2 of the paper's least squares is
+:math:`J_2^W = B\sum_k\bar h_k^2`; its gradient, with the weights
+:math:`w_{kj} = \partial\bar h_k/\partial\theta_j` frozen at a pilot
+:math:`\tilde\theta`, gives one estimating equation per parameter the spectrum sees
+(drift coefficients, :math:`S_0`, :math:`\omega_c`):
+
+.. math:: m_j(\theta) = \frac{1}{K}\sum_k w_{kj}\,\bar h_k(\theta).
+
+Weights and residuals from the same blocks are correlated, which would bias
+:math:`m_j` at the truth by about one standard error; the block-diagonal pairs are
+therefore removed (a U-statistic over block pairs :math:`r \ne r'`), and the influence
+is the statistic's Hoeffding projection at the solution,
+:math:`u_{rj} = \frac1K\sum_k \bar w^{(-r)}_{kj}h_{rk}` (weights from the other
+blocks).  ``form="printed"`` weights the ordinates as eq (50) does,
+:math:`(\hat V^a - k_2S_0)^2`, i.e. by :math:`(S_0L)^2`.
+
+The default band runs from bin 2 (the Hann window leaks a mean force into bins 0 and 1)
+to :math:`\min(6\,\omega_n, \omega_N/2)`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.model import Model
+from ..state import RecordState
+from .base import Excitation, Moments, feature_ffts, restoration
+
+__all__ = ["J2", "default_band"]
+
+#: Default upper edge of the J2 band, in units of the natural frequency.
+BAND_FACTOR = 6.0
+
+
+def default_band(state: RecordState) -> tuple[float, float]:
+    r"""``(omega_lo, omega_hi)`` of the J2 band (module docstring), rad/s; below the
+    Wiener filter (:math:`3\omega_n`) when the record was denoised.
+    """
+    s = state.scales
+    factor = 3.0 if state.noise is not None else BAND_FACTOR
+    return 0.0, min(factor * s.omega_n, 0.5 * s.omega_nyquist)
+
+
+@dataclass(frozen=True)
+class J2:
+    r"""The second-order spectral component (module docstring).
+
+    ``band``: ``(omega_lo, omega_hi)`` in rad/s (default :func:`default_band`);
+    ``form``: ``"scaled"`` or ``"printed"``; ``cut``: hold the restoring coefficients at
+    the pilot inside the force, so that J2 informs only the damping, :math:`S_0` and
+    :math:`\omega_c` (the paper's protocol takes the stiffness from the moments).
+    """
+
+    band: tuple[float, float] | None = None
+    form: str = "scaled"
+    cut: bool = False
+    name: str = "J2"
+
+    def prepare(self, state: RecordState, model: Model, pilot: np.ndarray) -> Moments:
+        """Per-bin block cross-spectra and frozen weights (module docstring)."""
+        if self.form not in ("scaled", "printed"):
+            raise ValueError(f"unknown form {self.form!r}: 'scaled' or 'printed'")
+        lo, hi = self.band or default_band(state)
+        if hi > state.scales.omega_nyquist:
+            raise ValueError(
+                f"the J2 band's upper edge {hi:g} rad/s is above the Nyquist frequency "
+                f"{state.scales.omega_nyquist:.4g} rad/s"
+            )
+        L = state.layout
+        bins = L.bins(lo, hi, k_min=2)
+        if bins.size < 3:
+            raise ValueError(f"the J2 band {lo:g}-{hi:g} rad/s holds fewer than 3 bins")
+        omega = bins * L.d_omega
+        s2, _ = restoration(state, model, pilot)
+        Y = feature_ffts(state, model, s2, bins)  # (F, B, K)
+        norm = 2 * math.pi * L.T * state.window.k2
+        R = np.einsum("ibk,jbk->bkij", Y, Y.conj()).real / norm  # (B, K, F, F)
+        B, K = R.shape[:2]
+        exc = Excitation(model, pilot, state.scales.sigma_v, state.scales.sigma_x)
+        nd = model.n_drift
+        th0 = np.asarray(pilot, dtype=float)
+        lam0 = np.concatenate([[1.0], th0[:nd]])
+        level0 = exc.S0(th0) * exc.shape(omega, th0)  # (K,)
+        P0 = np.einsum("bkij,i,j->bk", R, lam0, lam0) / level0  # h + 1
+        # directions: drift coefficients, S0, wc
+        held = [i for i, t in enumerate(model.drift_terms) if self.cut and t.variable != "v"]
+        dirs = [i for i in range(nd) if i not in held] + [exc.i_S0]
+        dirs += [exc.i_wc] if exc.i_wc is not None else []
+        names = model.param_names
+        w = np.empty((B, K, len(dirs)))
+        RL = np.einsum("bkij,j->bki", R, lam0)
+        for a, i in enumerate(dirs):
+            if i < nd:
+                w[:, :, a] = 2.0 * RL[:, :, i + 1] / level0
+            elif i == exc.i_S0:
+                w[:, :, a] = -P0 / exc.S0(th0)
+            else:
+                wc = th0[i]
+                w[:, :, a] = -P0 * 2.0 * omega**2 / (wc * (wc**2 + omega**2))
+        if self.form == "printed":
+            w = w * (level0**2)[None, :, None]
+        wbar = w.mean(axis=0)  # (K, J)
+        # U-statistic: A_kj = wbar_kj Rbar_k - mean_b(w_bkj R_bk) / B
+        Rbar = R.mean(axis=0)
+        A = np.einsum("kj,kxy->kjxy", wbar, Rbar) - np.einsum("bkj,bkxy->kjxy", w, R) / B**2
+        c = wbar - w.mean(axis=0) / B
+        scale = B / ((B - 1) * K)
+        white = exc.i_wc is None
+        A_sum = A.sum(axis=0) if white else None
+        c_sum = c.sum(axis=0)
+
+        def mean(theta):
+            th = np.asarray(theta, dtype=float)
+            if held:  # the cut: restoring coefficients held at the pilot
+                th = th.copy()
+                th[..., held] = th0[held]
+            lam = np.concatenate([np.ones((*th.shape[:-1], 1)), th[..., :nd]], axis=-1)
+            S0 = exc.S0(th)[..., None]
+            if white:
+                q = np.einsum("...x,jxy,...y->...j", lam, A_sum, lam)
+                return scale * (q / S0 - c_sum)
+            lev = S0 * exc.shape(omega, th)  # (..., K)
+            q = np.einsum("...x,kjxy,...y->...kj", lam, A, lam)
+            return scale * (np.sum(q / lev[..., None], axis=-2) - c_sum)
+
+        # the statistic's projection on the blocks (its other half, w_b times the
+        # population residual, vanishes at the solution; the sample residual is noise)
+        w_loo = (B * wbar[None] - w) / (B - 1)  # the other blocks' mean weights
+        u = np.einsum("bkj,bk->bj", w_loo, P0 - 1.0) / K
+        return Moments(
+            component=self.name,
+            labels=tuple(f"J2 d/d{names[i]}" for i in dirs),
+            mean=mean,
+            influence=u - u.mean(axis=0),
+            info={
+                "band_rad_s": [float(omega[0]), float(omega[-1])],
+                "bins": int(K),
+                "form": self.form,
+            },
+        )

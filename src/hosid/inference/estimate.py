@@ -1,0 +1,228 @@
+r"""Record -> state -> components -> calibrated quasi-likelihood and its mode.
+
+:func:`estimate` turns a record into its calibrated quasi-likelihood and mode:
+
+1. :class:`hosid.state.RecordState` (derivatives, blocks, scales) once;
+2. a closed-form pilot (:mod:`hosid.inference.pilot`);
+3. two rounds of efficient GMM (:mod:`hosid.inference.gmm`): the components are
+   prepared at the current estimate (weights, velocity restoration), stacked,
+   weighted with their influence covariance and solved.
+
+:func:`fit` adds the priors (eq-65 constraint by default), the calibration of
+:mod:`hosid.inference.calibrate` and emcee (:mod:`hosid.inference.sampler`), and
+returns an arviz ``DataTree`` (:mod:`hosid.output.results`).
+
+Component sets (``cost``; "cut": the spectral components hold the restoring coefficients
+at the pilot, which the restoring identities, the paper's moment method, inform):
+
+=========  ===================================================  ======================
+``cost``   components                                           what it is
+=========  ===================================================  ======================
+``None``   identities (all drift terms) + J2                    the default: efficient
+``"J2"``   identities (restoring terms) + J2 (cut)              paper's second order
+``"J4A"``  identities (restoring terms) + J2 + J4A (cut)        paper's protocol, eq 59
+``"J4B"``  identities (restoring terms) + J2 + J4B (cut)        eq 62-63
+=========  ===================================================  ======================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..components.base import Component, restoration
+from ..components.identities import Identities
+from ..components.noise import NoiseFloor
+from ..components.spectral import J2
+from ..errors import HosidInputError
+from ..model.model import Model
+from ..model.priors import LogUniform, PriorSet
+from ..record import Record
+from ..state import RecordState
+from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
+from .pilot import pilot as pilot_estimate
+
+__all__ = [
+    "COSTS",
+    "Estimate",
+    "components_for",
+    "estimate",
+    "likelihood_map",
+    "log_params",
+    "prepare_state",
+]
+
+COSTS = ("J2", "J4A", "J4B")
+
+
+def components_for(
+    cost: str | None = None,
+    *,
+    band: tuple[float, float] | None = None,
+    form: str = "scaled",
+    domain: str = "principal",
+) -> list[Component]:
+    """The component set of ``cost`` (module table).
+
+    Raises
+    ------
+    HosidInputError
+        For an unknown cost or form.
+    """
+    if form not in ("scaled", "printed"):
+        raise HosidInputError(f"unknown form {form!r}: 'scaled' or 'printed'")
+    if cost is None:
+        return [Identities(), J2(band=band, form=form)]
+    if cost not in COSTS:
+        raise HosidInputError(f"unknown cost {cost!r}: choose from {', '.join(COSTS)}")
+    comps: list[Component] = [Identities("restoring"), J2(band=band, form=form, cut=True)]
+    if cost in ("J4A", "J4B"):
+        from ..components.polyspectral import J4
+
+        comps.append(J4(kind=cost[-1], form=form, domain=domain))
+    return comps
+
+
+def prepare_state(
+    record: Record,
+    model: Model,
+    *,
+    block_seconds: float | None = None,
+    window: str = "hann",
+) -> RecordState:
+    """The record's state for ``model``: the displacement keeps its offset when the
+    model has an asymmetric term (``b2`` or ``m``), which the offset informs, and is
+    Wiener-filtered when the model has measurement noise.
+    """
+    centred = not (model.has("b2") or model.has("m"))
+    return RecordState.from_record(
+        record,
+        block_seconds=block_seconds,
+        window=window,
+        centred=centred,
+        denoise=model.has("noise_sd"),
+    )
+
+
+@dataclass
+class Estimate:
+    """The mode of a quasi-likelihood and what it was built from."""
+
+    model: Model
+    state: RecordState
+    theta: np.ndarray
+    ql: QuasiLikelihood
+    cov: np.ndarray
+    sigma_v: float  # velocity sd with the restoration (eq 65)
+    test: dict
+    pilot: np.ndarray
+
+    @property
+    def values(self) -> dict[str, float]:
+        """The estimate by name."""
+        return self.model.params(self.theta)
+
+    @property
+    def sd(self) -> dict[str, float]:
+        """Standard deviations from the calibrated curvature."""
+        return dict(zip(self.model.param_names, np.sqrt(np.diag(self.cov)).tolist(), strict=True))
+
+    def scales(self):
+        """The state's scales with the restored velocity sd."""
+        return dataclasses.replace(self.state.scales, sigma_v=self.sigma_v)
+
+
+def log_params(model: Model, priors: PriorSet | None = None) -> list[int]:
+    """Parameters handled in their logarithm (log-uniform priors; ``S0`` and ``wc``)."""
+    names = model.param_names
+    if priors is not None:
+        return [i for i, n in enumerate(names) if isinstance(priors[n], LogUniform)]
+    return [i for i, n in enumerate(names) if n in ("S0", "wc")]
+
+
+def typical_scale(model: Model, state: RecordState, theta: np.ndarray) -> np.ndarray:
+    """A typical size of each parameter (finite differences, solver scaling)."""
+    priors = model.default_priors(state.scales, constrained=False)
+    width = np.array([priors[n].upper - priors[n].lower for n in model.param_names])
+    return np.maximum(np.abs(theta), 1e-3 * np.where(np.isfinite(width), width, 1.0))
+
+
+def estimate(
+    record: Record | RecordState,
+    model: Model | str = "paper",
+    components: Sequence[Component] | None = None,
+    *,
+    start: np.ndarray | None = None,
+    rounds: int = 2,
+    block_seconds: float | None = None,
+) -> Estimate:
+    """The calibrated quasi-likelihood of ``record`` and its mode (module docstring),
+    searched within the default priors' supports.
+
+    Raises
+    ------
+    HosidInputError
+        If the record is too short, constant, or not described by the model.
+    """
+    model = Model.from_spec(model)
+    state = (
+        record
+        if isinstance(record, RecordState)
+        else prepare_state(record, model, block_seconds=block_seconds)
+    )
+    components = list(components or components_for())
+    if model.has("noise_sd") and not any(isinstance(c, NoiseFloor) for c in components):
+        components.append(NoiseFloor())
+    theta0 = pilot_estimate(state, model) if start is None else np.array(start, dtype=float)
+    theta = theta0.copy()
+    logs = log_params(model)
+    support = model.default_priors(state.scales, constrained=False)
+    lower = np.array([support[n].lower for n in model.param_names])
+    upper = np.array([support[n].upper for n in model.param_names])
+    for _ in range(rounds):
+        try:
+            moments = [c.prepare(state, model, theta) for c in components]
+            ql = quasi_likelihood(moments, n_params=len(theta))
+        except ValueError as exc:
+            raise HosidInputError(str(exc)) from None
+        scale = typical_scale(model, state, theta)
+        new = solve(ql, theta, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
+        if not np.all(np.isfinite(new)):
+            raise HosidInputError("the estimating equations have no finite solution")
+        theta = new
+    cov = ql.laplace(theta, typical_scale(model, state, theta))
+    # a parameter the equations barely see (e.g. at a bound of its support) gets no more
+    # spread than a quarter of its prior's width
+    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    cap = np.where(np.isfinite(upper - lower), 0.25 * (upper - lower), np.inf)
+    f = np.minimum(1.0, cap / sd)
+    cov = cov * np.outer(f, f)
+    s2, _ = restoration(state, model, theta)
+    sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
+    return Estimate(model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0)
+
+
+def likelihood_map(est: Estimate, draws: np.ndarray, loglike=None, n: int = 61) -> dict | None:
+    """The (calibrated, when ``loglike`` is given) quasi-log-likelihood over an
+    ``(a1, n1)`` grid around the draws and their mirror images, the other parameters at
+    the estimate (or ``None`` when the model lacks either coefficient).
+    """
+    loglike = est.ql if loglike is None else loglike
+    m = est.model
+    if not (m.has("a1") and m.has("n1")):
+        return None
+    i, j = m.index("a1"), m.index("n1")
+    qa = np.quantile(np.append(draws[:, i], -draws[:, i]), [0.0, 1.0])
+    qn = np.quantile(np.append(draws[:, j], -draws[:, j]), [0.0, 1.0])
+    pad_a = 0.25 * (qa[1] - qa[0]) + 1e-9
+    pad_n = 0.25 * (qn[1] - qn[0]) + 1e-9
+    ga = np.linspace(qa[0] - pad_a, qa[1] + pad_a, n)
+    gn = np.linspace(qn[0] - pad_n, qn[1] + pad_n, n)
+    A, N = np.meshgrid(ga, gn, indexing="ij")
+    th = np.broadcast_to(est.theta, (*A.shape, est.theta.size)).copy()
+    th[..., i], th[..., j] = A, N
+    return {"a1": ga, "n1": gn, "log_likelihood": loglike(th)}

@@ -1,0 +1,191 @@
+r"""The calibrated quasi-likelihood of stacked estimating equations (efficient GMM).
+
+The components' equations are stacked, :math:`\bar m(\theta) \in \mathbb R^k`, and their
+per-block influences :math:`u_b` give the covariance of the block mean,
+:math:`\hat\Sigma/B` with :math:`\hat\Sigma = \frac{1}{B-1}\sum_b u_bu_b^{\mathsf T}`.
+The quasi-log-likelihood is
+
+.. math:: \ell(\theta) = -\frac{B}{2}\,\bar m(\theta)^{\mathsf T} W\,\bar m(\theta),
+    \qquad W = \frac{B-k-2}{B-1}\,\hat\Sigma^{-1},
+
+the factor making :math:`W` an unbiased estimate of :math:`\Sigma^{-1}` (Wishart).  Near
+its mode :math:`\hat\theta` the curvature of :math:`\ell` is :math:`B\,G^{\mathsf T}WG`
+(:math:`G = \partial\bar m/\partial\theta`), which is the inverse of the sandwich
+(Godambe) covariance :math:`(G^{\mathsf T}\Sigma^{-1}G)^{-1}/B` of the estimator: with
+the optimal weight the curvature adjustment of a composite likelihood (Chandler & Bate
+2007) is built in, and the quasi-posterior :math:`\propto\pi(\theta)e^{\ell(\theta)}` is
+calibrated to first order (Chernozhukov & Hong 2003).  Over-identification
+(:math:`k > p`) gives Hansen's test :math:`J = -2\ell(\hat\theta) \sim \chi^2_{k-p}`,
+reported with the fit.
+
+The whitened residual :math:`r(\theta) = \sqrt B\,W^{1/2}\bar m(\theta)` is built with
+:math:`W^{1/2}` from the Cholesky factor of :math:`\hat\Sigma` in the components' order,
+so :math:`\ell = -\tfrac12\|r\|^2` splits exactly into one term per component (each
+component given the ones before it): the ``log_likelihood`` group of a fit.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import linalg, optimize, stats
+
+from ..components.base import Moments
+
+__all__ = ["QuasiLikelihood", "quasi_likelihood", "solve"]
+
+
+@dataclass
+class QuasiLikelihood:
+    """The stacked, whitened estimating equations (module docstring)."""
+
+    moments: list[Moments]
+    B: int
+    L_inv: np.ndarray  # (k, k) inverse Cholesky factor of Sigma / c
+    slices: dict[str, slice]
+    info: dict = field(default_factory=dict)
+
+    @property
+    def k(self) -> int:
+        """Number of estimating equations."""
+        return self.L_inv.shape[0]
+
+    def mean(self, theta) -> np.ndarray:
+        """Stacked block means ``(..., k)``."""
+        return np.concatenate([m.mean(theta) for m in self.moments], axis=-1)
+
+    def residual(self, theta) -> np.ndarray:
+        r"""Whitened residual :math:`r(\theta)`, ``(..., k)``."""
+        return math.sqrt(self.B) * self.mean(theta) @ self.L_inv.T
+
+    def __call__(self, theta) -> np.ndarray:
+        """The quasi-log-likelihood."""
+        r = self.residual(theta)
+        out = -0.5 * np.sum(r * r, axis=-1)
+        return np.where(np.isfinite(out), out, -np.inf)
+
+    def by_component(self, theta) -> dict[str, np.ndarray]:
+        """The exact split of :meth:`__call__` into one term per component."""
+        r = self.residual(theta)
+        return {name: -0.5 * np.sum(r[..., s] ** 2, axis=-1) for name, s in self.slices.items()}
+
+    def jacobian(self, theta: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        """Central-difference Jacobian of :meth:`residual` at one ``theta``, ``(k, p)``."""
+        theta = np.asarray(theta, dtype=float)
+        steps = 1e-5 * scale
+        E = np.diag(steps)
+        plus = self.residual(theta + E)
+        minus = self.residual(theta - E)
+        return ((plus - minus) / (2 * steps)[:, None]).T
+
+    def laplace(self, theta: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        r"""Covariance :math:`(G_r^{\mathsf T}G_r)^{-1}` of the quasi-posterior at a mode
+        (the Godambe covariance of the estimator).
+        """
+        G = self.jacobian(theta, scale)
+        return np.linalg.pinv(G.T @ G)
+
+
+def quasi_likelihood(moments: Sequence[Moments], *, n_params: int) -> QuasiLikelihood:
+    """Stack ``moments`` and weight them with the inverse influence covariance.
+
+    Raises
+    ------
+    ValueError
+        If the blocks are too few for the number of equations (``B <= k + 2``) or the
+        covariance is singular.
+    """
+    U = np.concatenate([m.influence for m in moments], axis=1)
+    B, k = U.shape
+    if B <= k + 2:
+        raise ValueError(f"{B} blocks are too few for {k} estimating equations")
+    S = U.T @ U / (B - 1)
+    d = np.sqrt(np.diag(S))
+    if not np.all(d > 0):
+        bad = [lab for m in moments for lab in m.labels]
+        raise ValueError(
+            "an estimating equation has no variance: "
+            + ", ".join(b for b, di in zip(bad, d, strict=True) if not di > 0)
+        )
+    factor = (B - k - 2) / (B - 1)
+    C = S / np.outer(d, d)
+    try:
+        Lc = linalg.cholesky(C / factor, lower=True)
+    except linalg.LinAlgError:
+        raise ValueError("the estimating equations are linearly dependent") from None
+    L_inv = linalg.solve_triangular(Lc, np.eye(k), lower=True) / d[None, :]
+    slices, start = {}, 0
+    for m in moments:
+        slices[m.component] = slice(start, start + m.k)
+        start += m.k
+    lag1 = [
+        float(np.corrcoef(U[:-1, i], U[1:, i])[0, 1]) if B > 3 else float("nan") for i in range(k)
+    ]
+    info = {
+        "weighting": "efficient GMM (inverse influence covariance, Godambe curvature)",
+        "blocks": B,
+        "equations": k,
+        "parameters": n_params,
+        "weight_factor": factor,
+        "condition_number": float(np.linalg.cond(C)),
+        "max_abs_lag1_correlation": float(np.nanmax(np.abs(lag1))),
+    }
+    return QuasiLikelihood(list(moments), B, L_inv, slices, info)
+
+
+def hansen(ql: QuasiLikelihood, theta: np.ndarray) -> dict:
+    """Hansen's over-identification test at the estimate."""
+    J = float(-2.0 * ql(theta))
+    df = ql.k - int(ql.info["parameters"])
+    p = float(stats.chi2.sf(J, df)) if df > 0 else float("nan")
+    return {"J": J, "df": df, "p_value": p}
+
+
+def solve(
+    ql: QuasiLikelihood,
+    start: np.ndarray,
+    *,
+    log_params: Sequence[int],
+    scale: np.ndarray,
+    lower: np.ndarray | None = None,
+    upper: np.ndarray | None = None,
+) -> np.ndarray:
+    r"""Minimize :math:`\|r(\theta)\|^2` from ``start`` within ``[lower, upper]`` (the
+    priors' supports; trust-region reflective least squares).
+
+    Positive parameters (``log_params``) are solved for in their logarithm.
+    """
+    start = np.asarray(start, dtype=float)
+    p = start.size
+    lower = np.full(p, -np.inf) if lower is None else np.asarray(lower, dtype=float)
+    upper = np.full(p, np.inf) if upper is None else np.asarray(upper, dtype=float)
+    logs = np.zeros(p, dtype=bool)
+    logs[list(log_params)] = True
+    pad = 1e-9 * np.where(np.isfinite(upper - lower), upper - lower, 1.0)
+    start = np.clip(start, lower + pad, upper - pad)
+    s = np.where(logs, 1.0, scale)
+
+    def to_z(theta):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(logs, np.log(theta / start), (theta - start) / s)
+
+    def to_theta(z):
+        return np.where(logs, start * np.exp(np.where(logs, z, 0.0)), start + z * s)
+
+    def fun(z):
+        r = ql.residual(to_theta(z))
+        return np.where(np.isfinite(r), r, 1e150)
+
+    lo = np.where(logs & (lower <= 0), -np.inf, to_z(lower))
+    hi = to_z(upper)
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        res = optimize.least_squares(
+            fun, np.zeros(p), bounds=(lo, hi), method="trf", x_scale=1.0,
+            xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=4000,
+        )  # fmt: skip
+    return to_theta(res.x)

@@ -1,0 +1,1 @@
+"""Output: the fit's DataTree and summary, plots, the HTML report."""

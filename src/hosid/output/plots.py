@@ -1,0 +1,384 @@
+r"""Figures of a fit: corner, likelihood map, restoring force, traces, spectrum.
+
+Every function takes a fit's ``DataTree`` (:mod:`hosid.output.results`) and returns a
+new :class:`matplotlib.figure.Figure`, made without ``pyplot`` (no global figure
+registry, no backend switch): it renders with Agg through ``fig.savefig`` whatever the
+session's backend.  Axis labels carry units; the displacement unit is the root
+attribute ``unit`` when stored, else metres.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import xarray as xr
+from matplotlib.figure import Figure
+
+from ..model.model import Model
+from .results import attr, parameter_names
+
+__all__ = [
+    "MAX_DRAWS",
+    "QUANTILES",
+    "corner_plot",
+    "fit_title",
+    "known_truths",
+    "label",
+    "length_unit",
+    "likelihood_map_plot",
+    "restoring_force_plot",
+    "spectrum_plot",
+    "trace_plot",
+    "unit",
+]
+
+#: Quantiles marked in the corner plot and spanned by the bands.
+QUANTILES = (0.05, 0.5, 0.95)
+#: Most posterior draws drawn as points or curves (evenly thinned; corner plot: ten times).
+MAX_DRAWS = 2000
+
+# symbol and unit of each variable, ``{u}`` the displacement unit (force per unit mass)
+_VARIABLES = {
+    "a1": ("a_1", "1/s"),
+    "n1": ("n_1", "1/{u}"),
+    "a2": ("a_2", "1/s²"),
+    "n2": ("n_2", "1/({u}² s²)"),
+    "b2": ("b_2", "1/({u} s²)"),
+    "S0": ("S_0", "{u}²/s³"),
+    "a1eq": (r"a_{1\mathrm{eq}}", "1/s"),
+    "mu": (r"\mu", "{u}/s²"),
+    "m": ("m", "{u}/s²"),
+    "wc": (r"\omega_c", "rad/s"),
+    "noise_sd": (r"\sigma_\epsilon", "{u}"),
+    "lp": (r"\log p", ""),
+}
+# stiffness coefficients and the power of x each multiplies
+_STIFFNESS = {"a2": 1, "b2": 2, "n2": 3}
+
+
+def length_unit(tree: xr.DataTree) -> str:
+    """Unit of the displacement: the root attribute ``unit``, else ``"m"``."""
+    return str(attr(tree, "unit", None) or "m")
+
+
+def unit(name: str, length: str = "m") -> str:
+    """Unit of a parameter (``""`` when unknown): ``unit("n2") == "1/(m² s²)"``."""
+    return _VARIABLES.get(name, ("", ""))[1].format(u=length)
+
+
+def label(name: str, length: str = "m") -> str:
+    """Mathtext axis label with unit: ``label("a1") == "$a_1$ (1/s)"``."""
+    symbol = _VARIABLES.get(name, (None,))[0]
+    if symbol is None:
+        match = re.fullmatch(r"([A-Za-z]+)(\d+)", name)
+        symbol = f"{match[1]}_{{{match[2]}}}" if match else None
+    text = f"${symbol}$" if symbol else name
+    u = unit(name, length)
+    return f"{text} ({u})" if u else text
+
+
+def known_truths(tree: xr.DataTree) -> dict[str, float]:
+    r"""The stored truths, with ``a1eq`` from eq (65) when every parameter is known:
+    :math:`a_{1eq} = a_1 + n_1\sqrt{8/\pi}\,\sigma_{\dot x}` (each damping term's
+    factor) with the fit's ``sigma_v``.
+    """
+    known = {k: float(v) for k, v in (attr(tree, "truths") or {}).items() if v is not None}
+    sigma_v, names = attr(tree, "sigma_v"), attr(tree, "model")
+    if "a1eq" not in known and sigma_v is not None and names:
+        model = Model.from_spec(list(names))
+        if all(p in known for p in model.param_names) and model.has("a1"):
+            theta = [known[p] for p in model.param_names]
+            known["a1eq"] = float(model.equivalent_damping(theta, float(sigma_v)))
+    return known
+
+
+def _draws(tree: xr.DataTree, name: str) -> np.ndarray:
+    """All draws of a posterior variable, flattened over walkers and steps."""
+    return np.asarray(tree["posterior"][name].values, dtype=float).ravel()
+
+
+def _thin(n: int, most: int = MAX_DRAWS) -> np.ndarray:
+    """At most ``most`` evenly spaced indices into ``range(n)``."""
+    if n <= most:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, most).round().astype(int))
+
+
+def fit_title(tree: xr.DataTree) -> str:
+    """``record: cost, constrained``; an unnamed record by its hash."""
+    name = attr(tree, "record") or f"record {attr(tree, 'record_hash', '?')}"
+    kind = "constrained" if int(attr(tree, "constrained", 1)) else "unconstrained"
+    return f"{name}: {attr(tree, 'cost', '?')} cost, {kind}"
+
+
+def _axes(tree: xr.DataTree, heading: str, size: tuple[float, float] = (5.5, 4.0)):
+    """A new figure with one axes titled ``heading`` over the fit's title."""
+    fig = Figure(figsize=size, layout="constrained")
+    ax = fig.add_subplot()
+    ax.set_title(f"{heading}\n{fit_title(tree)}", fontsize=9)
+    return fig, ax
+
+
+def _range(column: np.ndarray) -> tuple[float, float]:
+    """Plot range of a column, widened when the column is constant."""
+    lo, hi = float(np.min(column)), float(np.max(column))
+    if lo == hi:
+        pad = 0.5 * abs(lo) if lo else 1.0
+        lo, hi = lo - pad, hi + pad
+    return lo, hi
+
+
+def corner_plot(tree: xr.DataTree) -> Figure:
+    """Corner plot of the sampled parameters and ``a1eq``, truths marked when known.
+
+    ``a1eq`` is left out when it equals a sampled parameter (a linear model's ``a1``).
+    The 5 %, 50 % and 95 % quantiles are marked and quoted in the titles.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A fit (:mod:`hosid.output.results`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        ``K x K`` axes for ``K`` variables.
+    """
+    import corner
+
+    names = parameter_names(tree)
+    if "a1eq" in tree["posterior"].data_vars:
+        a1eq = _draws(tree, "a1eq")
+        if not any(np.array_equal(a1eq, _draws(tree, p)) for p in names):
+            names.append("a1eq")
+    data = np.column_stack([_draws(tree, p) for p in names])
+    data = data[_thin(len(data), 10 * MAX_DRAWS)]
+    known = known_truths(tree)
+    truths = [known.get(p) for p in names]
+    length = length_unit(tree)
+    k = len(names)
+    fig = Figure(figsize=(1.6 * k + 1.0, 1.6 * k + 1.0))
+    corner.corner(
+        data,
+        fig=fig,
+        range=[_range(c) for c in data.T],
+        labels=[label(p, length) for p in names],
+        truths=truths if any(t is not None for t in truths) else None,
+        quantiles=list(QUANTILES),
+        show_titles=True,
+        title_fmt=".3g",
+        title_kwargs={"fontsize": 8},
+        label_kwargs={"fontsize": 9},
+    )
+    fig.suptitle(f"Posterior\n{fit_title(tree)}", fontsize=10)
+    return fig
+
+
+def _levels(delta: np.ndarray) -> np.ndarray | None:
+    """Contour levels of a log-likelihood drop: geometric from 0.5, two per decade."""
+    finite = delta[np.isfinite(delta)]
+    top = float(finite.max()) if finite.size else 0.0
+    if not top > 0.5:
+        return None
+    return np.geomspace(0.5, top, int(np.clip(math.ceil(2 * math.log10(top / 0.5)) + 1, 3, 20)))
+
+
+def likelihood_map_plot(tree: xr.DataTree) -> Figure | None:
+    r"""The quasi-log-likelihood over :math:`(a_1, n_1)` with the posterior draws on top.
+
+    Contours of :math:`\log_{10}(\max\ell - \ell)`, from a drop of 0.5, of the
+    ``likelihood_map`` group (other parameters at the estimate): the valley of J2 along constant
+    :math:`a_{1eq}` and, without the constraint, the twin minima of J4 (paper
+    Figures 7-8).  The line of zero equivalent damping, eq (65),
+
+    .. math:: a_1 + n_1 \sqrt{8/\pi}\,\sigma_{\dot x} = 0,
+
+    is dashed, and the side where :math:`a_{1eq} < 0` is shaded as inadmissible when
+    the fit was constrained.  The truth is starred when known.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A fit (:mod:`hosid.output.results`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        One axes and a colour bar; ``None`` when the fit has no ``likelihood_map``.
+    """
+    if "likelihood_map" not in tree.children:
+        return None
+    lmap = tree["likelihood_map"]
+    a1 = np.asarray(lmap["a1"].values, dtype=float)
+    n1 = np.asarray(lmap["n1"].values, dtype=float)
+    ll = np.asarray(lmap["log_likelihood"].values, dtype=float)
+    length = length_unit(tree)
+    fig, ax = _axes(tree, "Quasi-log-likelihood, other parameters at the estimate", (6.0, 4.5))
+    delta = np.nanmax(np.where(np.isfinite(ll), ll, np.nan)) - ll
+    levels = _levels(delta)
+    if levels is not None:
+        surface = np.log10(np.clip(np.nan_to_num(delta, nan=levels[-1]), 0.25, levels[-1]))
+        cs = ax.contour(a1, n1, surface.T, levels=np.log10(levels), cmap="viridis")
+        fig.colorbar(cs, ax=ax, format="%.1f", label=r"$\log_{10}(\max\ell - \ell)$")
+    pa, pn = _draws(tree, "a1"), _draws(tree, "n1")
+    idx = _thin(pa.size)
+    ax.scatter(pa[idx], pn[idx], s=2, alpha=0.3, color="C3", label="posterior draws", zorder=2)
+    known = known_truths(tree)
+    if "a1" in known and "n1" in known:
+        ax.plot(known["a1"], known["n1"], "k*", markersize=11, label="truth", zorder=3)
+    sigma_v = attr(tree, "sigma_v")
+    if sigma_v is not None and float(sigma_v) > 0:
+        boundary = -a1 / (math.sqrt(8 / math.pi) * float(sigma_v))  # eq (65): a1eq = 0
+        ax.plot(a1, boundary, "k--", linewidth=1.0, label=r"$a_{1\mathrm{eq}} = 0$ (eq 65)")
+        if int(attr(tree, "constrained", 1)):
+            upper = np.clip(boundary, n1[0], n1[-1])
+            ax.fill_between(a1, n1[0], upper, fc="0.8", ec="none", label="inadmissible")
+    ax.set_xlim(a1[0], a1[-1])
+    ax.set_ylim(n1[0], n1[-1])
+    ax.set_xlabel(label("a1", length))
+    ax.set_ylabel(label("n1", length))
+    ax.legend(loc="best", fontsize=7)
+    return fig
+
+
+def _sigma_x(tree: xr.DataTree) -> float:
+    r"""The record's displacement sd: ``state["sigma_x"]``, else
+    :math:`(2\int S_{xx}\,d\omega)^{1/2}` over the fitted band.
+    """
+    state = attr(tree, "state") or {}
+    if state.get("sigma_x"):
+        return float(state["sigma_x"])
+    obs = tree["observed_data"]
+    return math.sqrt(2.0 * float(np.trapezoid(obs["Sxx"].values, obs["omega"].values)))
+
+
+def restoring_force_plot(tree: xr.DataTree, *, n_x: int = 201) -> Figure | None:
+    r"""Posterior of the restoring force :math:`f_R(x) = a_2 x + b_2 x^2 + n_2 x^3`.
+
+    Median and 5-95 % band over at most :data:`MAX_DRAWS` draws, on
+    :math:`|x| \le 4\sigma_x` (the record's displacement sd), with the true curve when
+    known.  Terms absent from the model count as zero.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A fit (:mod:`hosid.output.results`).
+    n_x : int
+        Number of displacement points.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        One axes; ``None`` when the model has no stiffness term.
+    """
+    if n_x < 2:
+        raise ValueError(f"n_x must be at least 2, got {n_x}")
+    present = [p for p in _STIFFNESS if p in tree["posterior"].data_vars]
+    if not present:
+        return None
+    sx = _sigma_x(tree)
+    x = np.linspace(-4.0 * sx, 4.0 * sx, n_x)
+    idx = _thin(_draws(tree, present[0]).size)
+    force = sum(_draws(tree, p)[idx, None] * x ** _STIFFNESS[p] for p in present)
+    lo, mid, hi = np.quantile(force, QUANTILES, axis=0)
+    length = length_unit(tree)
+    fig, ax = _axes(tree, r"Restoring force, $|x| \leq 4\sigma_x$")
+    ax.fill_between(x, lo, hi, color="C0", alpha=0.3, linewidth=0, label="5-95 % band")
+    ax.plot(x, mid, color="C0", label="posterior median")
+    known = known_truths(tree)
+    if all(p in known for p in present):
+        ax.plot(x, sum(known[p] * x ** _STIFFNESS[p] for p in present), "k--", label="truth")
+    ax.axhline(0.0, color="0.7", linewidth=0.5)
+    ax.axvline(0.0, color="0.7", linewidth=0.5)
+    terms = " + ".join({"a2": "a_2 x", "b2": "b_2 x^2", "n2": "n_2 x^3"}[p] for p in present)
+    ax.set_xlabel(f"$x$ ({length})")
+    ax.set_ylabel(f"$f_R(x) = {terms}$ ({length}/s²)")
+    ax.legend(loc="best", fontsize=8)
+    return fig
+
+
+def trace_plot(tree: xr.DataTree, *, max_walkers: int = 6) -> Figure:
+    """Draws against step of a few walkers, one row per parameter and one for ``lp``.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A fit (:mod:`hosid.output.results`).
+    max_walkers : int
+        Most walkers drawn (evenly chosen among all).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes per sampled parameter, plus one for ``lp`` when stored.
+    """
+    if max_walkers < 1:
+        raise ValueError(f"max_walkers must be positive, got {max_walkers}")
+    series = [(p, tree["posterior"][p].values) for p in parameter_names(tree)]
+    if "sample_stats" in tree.children and "lp" in tree["sample_stats"].data_vars:
+        series.append(("lp", tree["sample_stats"]["lp"].values))
+    n_chain, n_draw = series[0][1].shape
+    chains = _thin(n_chain, max_walkers)
+    steps = _thin(n_draw)
+    length = length_unit(tree)
+    fig = Figure(figsize=(6.5, 1.1 * len(series) + 0.8), layout="constrained")
+    axes = fig.subplots(len(series), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (name, values) in zip(axes, series, strict=True):
+        values = np.asarray(values, dtype=float)
+        for c in chains:
+            ax.plot(steps, values[c, steps], linewidth=0.6, alpha=0.8)
+        ax.set_ylabel(label(name, length), fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[-1].set_xlabel("step after burn-in")
+    axes[0].set_title(
+        f"Traces of {len(chains)} of {n_chain} walkers\n{fit_title(tree)}", fontsize=9
+    )
+    return fig
+
+
+def spectrum_plot(tree: xr.DataTree) -> Figure:
+    r"""The record's displacement spectrum and the fit's linear-equivalent prediction.
+
+    The prediction is
+
+    .. math:: S_{xx}(\omega) \approx \frac{S_0}{(a_{2eq} - \omega^2)^2 +
+              a_{1eq}^2\omega^2}, \qquad a_{2eq} = \sigma_{\dot x}^2 / \sigma_x^2,
+
+    at the posterior medians of :math:`S_0` and :math:`a_{1eq}` (times
+    :math:`\omega_c^2/(\omega_c^2 + \omega^2)` with coloured excitation), with the
+    fit's ``sigma_v`` and the record's ``sigma_x``.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A fit (:mod:`hosid.output.results`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes, logarithmic in the spectrum.
+    """
+    obs = tree["observed_data"]
+    omega = np.asarray(obs["omega"].values, dtype=float)
+    sxx = np.asarray(obs["Sxx"].values, dtype=float)
+    length = length_unit(tree)
+    fig, ax = _axes(tree, "Displacement spectrum")
+    ax.plot(omega, sxx, color="0.4", linewidth=0.8, label="record (block average)")
+    post = tree["posterior"].data_vars
+    state = attr(tree, "state") or {}
+    sigma_v = attr(tree, "sigma_v", state.get("sigma_v"))
+    if "S0" in post and "a1eq" in post and sigma_v is not None:
+        a2eq = float(sigma_v) ** 2 / _sigma_x(tree) ** 2
+        s0, a1eq = (float(np.median(_draws(tree, p))) for p in ("S0", "a1eq"))
+        model = s0 / ((a2eq - omega**2) ** 2 + a1eq**2 * omega**2)
+        if "wc" in post:
+            wc = float(np.median(_draws(tree, "wc")))
+            model = model * wc**2 / (wc**2 + omega**2)
+        ax.plot(omega, model, color="C3", label="linear equivalent, posterior median")
+    ax.set_yscale("log")
+    ax.set_xlabel(r"$\omega$ (rad/s)")
+    ax.set_ylabel(rf"$S_{{xx}}(\omega)$ ({length}² s)")
+    ax.legend(loc="best", fontsize=8)
+    return fig

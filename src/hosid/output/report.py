@@ -1,0 +1,323 @@
+"""One-page HTML report of a fit, its figures as PNG and a JSON summary.
+
+:func:`write_report` needs nothing but the fit's ``DataTree`` (as saved in
+``posterior.nc``), so a report can be regenerated without the record.  The page is
+rendered from the jinja2 template ``templates/report.html.j2`` with the figures
+embedded as base64 PNG; every file is written atomically (a temporary name in the
+output directory, then :func:`os.replace`).
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import os
+import secrets
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import jinja2
+import xarray as xr
+from matplotlib.figure import Figure
+
+from ..errors import HosidInputError
+from ..model.model import Model
+from . import plots
+from .results import ESS_MIN, RHAT_MAX, attr, jsonable, summarize
+
+__all__ = ["CAPTIONS", "COLUMNS", "figures", "write_report"]
+
+#: Columns of the posterior table, in order (``summarize`` keys).
+COLUMNS = ("mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk")
+
+_HEADERS = {"q05": "5 %", "q50": "50 %", "q95": "95 %"}
+_PROVENANCE = (
+    "record",
+    "record_hash",
+    "created_at",
+    "hosid_version",
+    "inference_library",
+    "inference_library_version",
+)
+
+_PLOTS: dict[str, Callable[[xr.DataTree], Figure | None]] = {
+    "corner": plots.corner_plot,
+    "likelihood_map": plots.likelihood_map_plot,
+    "restoring_force": plots.restoring_force_plot,
+    "trace": plots.trace_plot,
+    "spectrum": plots.spectrum_plot,
+}
+
+#: Caption of each figure, by file stem.
+CAPTIONS = {
+    "corner": "Posterior of the parameters and of the equivalent damping a1eq (eq 65); "
+    "dashed lines at the 5, 50 and 95 % quantiles, blue lines at the truth when known.",
+    "likelihood_map": "Quasi-log-likelihood over (a1, n1), the other parameters at the "
+    "estimate, with posterior draws; dashed: a1eq = 0 (eq 65), shaded where the "
+    "constraint rules the plane out.",
+    "restoring_force": "Restoring force over four displacement standard deviations: "
+    "posterior median and 5-95 % band.",
+    "trace": "Traces of a few walkers and of the log quasi-posterior, to judge mixing.",
+    "spectrum": "The record's displacement spectrum and the linear-equivalent oscillator "
+    "at the posterior median (a2eq = sigma_v^2 / sigma_x^2).",
+}
+
+# the drift terms as they read in the equation of motion
+_TERM_TEXT = {
+    "linear_damping": "a1 ẋ",
+    "quadratic_damping": "n1 ẋ|ẋ|",
+    "coulomb_friction": "mu sign(ẋ)",
+    "linear_stiffness": "a2 x",
+    "quadratic_stiffness": "b2 x²",
+    "cubic_stiffness": "n2 x³",
+    "excitation_mean": "(-m)",
+}
+
+
+def figures(tree: xr.DataTree) -> dict[str, Figure]:
+    """Every figure of the report, by file stem; figures that do not apply are left out.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A fit (:mod:`hosid.output.results`).
+
+    Returns
+    -------
+    dict of str to matplotlib.figure.Figure
+        ``corner``, ``likelihood_map`` (when the fit has the group), ``restoring_force``
+        (when the model has stiffness), ``trace`` and ``spectrum``, in that order.
+    """
+    out = {}
+    for stem, plot in _PLOTS.items():
+        fig = plot(tree)
+        if fig is not None:
+            out[stem] = fig
+    return out
+
+
+def _num(value: Any, digits: int = 4) -> str:
+    """A number to ``digits`` significant digits; ``-`` for missing or NaN."""
+    if value is None or value == "":
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return str(value)
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    return "-" if math.isnan(number) else f"{number:.{digits}g}"
+
+
+def _show(value: Any) -> str:
+    """Any attribute value as short text, numbers to four digits inside lists and maps."""
+    if isinstance(value, Mapping):
+        return ", ".join(f"{k}: {_show(v)}" for k, v in value.items())
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_show(v) for v in value) + "]"
+    return _num(value)
+
+
+def _pairs(data: Mapping[str, Any] | None) -> list[tuple[str, str]]:
+    return [(str(k), _show(v)) for k, v in (data or {}).items()]
+
+
+def _summary(tree: xr.DataTree) -> dict[str, Any]:
+    """:func:`~hosid.output.results.summarize` with the fit's remaining attributes."""
+    length = plots.length_unit(tree)
+    out = summarize(tree, warn=False)
+    calibration = out.get("calibration") or {}
+    out.update(
+        {
+            "units": {k: plots.unit(k, length) for k in out["parameters"]},
+            "length_unit": length,
+            "hansen": calibration.get("hansen"),
+            "sigma_v": attr(tree, "sigma_v"),
+            **{k: attr(tree, k) for k in ("state", "components_info", "priors", "estimate")},
+            **{k: attr(tree, k) for k in ("sampler", "timings", "duration", "dt")},
+            "created_at": attr(tree, "created_at"),
+            "hosid_version": attr(tree, "hosid_version"),
+            "inference_library": attr(tree, "inference_library"),
+            "inference_library_version": attr(tree, "inference_library_version"),
+        }
+    )
+    return jsonable(out)
+
+
+def _calibration(summary: Mapping[str, Any]) -> dict[str, Any]:
+    """Method, dispersion, Hansen's test, the note and bootstrap checks for the banner."""
+    cal = dict(summary.get("calibration") or {})
+    hansen = cal.pop("hansen", None)
+    bias, ratio = cal.pop("bias", None) or {}, cal.pop("sd_ratio", None) or {}
+    rows = []
+    for name in dict.fromkeys([*bias, *ratio]):
+        sd = summary["parameters"].get(name, {}).get("sd")
+        b = bias.get(name)
+        rel = b / sd if b is not None and sd else None
+        rows.append((name, _num(b), _num(rel, 3), _num(ratio.get(name), 3)))
+    return {
+        "method": cal.pop("method", "?"),
+        "dispersion": _num(cal.pop("dispersion", None)),
+        "note": cal.pop("note", None),
+        "hansen": hansen and {k: _num(hansen.get(k)) for k in ("J", "df", "p_value")},
+        "bootstrap": rows,
+        "details": _pairs(cal),
+    }
+
+
+def _table(summary: Mapping[str, Any], truths: Mapping[str, float]) -> list[dict]:
+    rows = []
+    for name, row in summary["parameters"].items():
+        cells = [_num(row[c]) for c in COLUMNS[:-2]]
+        cells.append("-" if row["r_hat"] is None else f"{row['r_hat']:.3f}")
+        cells.append("-" if row["ess_bulk"] is None else str(round(row["ess_bulk"])))
+        failed = any(f.startswith(f"{name}:") for f in summary["diagnostic_failures"])
+        rows.append(
+            {
+                "name": name,
+                "unit": summary["units"].get(name, ""),
+                "cells": cells,
+                "truth": _num(truths.get(name)),
+                "fail": failed,
+            }
+        )
+    return rows
+
+
+def _model(tree: xr.DataTree) -> dict[str, Any]:
+    names = list(attr(tree, "model") or [])
+    terms = Model.from_spec(names).terms if names else ()
+    drift = [_TERM_TEXT.get(t.name, t.latex) for t in terms if t.kind == "drift"]
+    return {
+        "equation": "ẍ + " + " + ".join(drift) + " = f(t)" if drift else "",
+        "terms": [(t.name, t.kind, ", ".join(t.params)) for t in terms],
+    }
+
+
+def _state(summary: Mapping[str, Any]) -> list[tuple[str, str]]:
+    state = summary.get("state") or {}
+    band = ((summary.get("components_info") or {}).get("J2") or {}).get("band_rad_s")
+    rows = {
+        "block length (s)": state.get("block_seconds"),
+        "blocks": state.get("blocks"),
+        "samples per block": state.get("block_samples"),
+        "window": state.get("window"),
+        "omega_n = sigma_v / sigma_x (rad/s)": state.get("omega_n"),
+        "J2 band (rad/s)": band,
+        f"sigma_x ({summary['length_unit']})": state.get("sigma_x"),
+        f"sigma_v, restored ({summary['length_unit']}/s)": summary.get("sigma_v"),
+        "record duration (s)": summary.get("duration"),
+        "dt (s)": summary.get("dt"),
+    }
+    return _pairs({k: v for k, v in rows.items() if v is not None})
+
+
+def _context(
+    tree: xr.DataTree, summary: Mapping[str, Any], images: Mapping[str, bytes]
+) -> dict[str, Any]:
+    """Everything the template shows, formatted."""
+    truths = plots.known_truths(tree)
+    timings = dict(summary.get("timings") or {})
+    timings["total"] = summary.get("fit_seconds")
+    return {
+        "title": plots.fit_title(tree),
+        "summary": summary,
+        "rhat_max": RHAT_MAX,
+        "ess_min": ESS_MIN,
+        "calibration": _calibration(summary),
+        "columns": [_HEADERS.get(c, c) for c in COLUMNS],
+        "rows": _table(summary, truths),
+        "has_truth": bool(truths),
+        "derived_a1eq": "a1eq" in truths and "a1eq" not in (summary.get("truths") or {}),
+        "model": _model(tree),
+        "components": [
+            (c, _show((summary.get("components_info") or {}).get(c, {})))
+            for c in summary.get("components") or []
+        ],
+        "state": _state(summary),
+        "sampler": _pairs(summary.get("sampler")),
+        "timings": _pairs({f"{k} (s)": v for k, v in timings.items()}),
+        "priors": _pairs(summary.get("priors")),
+        "settings": _pairs(summary.get("settings")),
+        "provenance": _pairs({k: summary.get(k) for k in _PROVENANCE}),
+        "figures": [
+            {"stem": k, "caption": CAPTIONS.get(k, k), "data": base64.b64encode(v).decode("ascii")}
+            for k, v in images.items()
+        ],
+    }
+
+
+def _png(fig: Figure, dpi: int) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    return buffer.getvalue()
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``."""
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+    try:
+        with open(tmp, "xb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise HosidInputError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def write_report(tree: xr.DataTree, out_dir: str | Path, *, dpi: int = 100) -> list[Path]:
+    """Write the report of a fit into ``out_dir`` (created when missing).
+
+    Files: ``report.html`` (self-contained: convergence and calibration banner,
+    posterior table with units and truths, model, components, state, sampler, timings,
+    priors, settings and the figures), ``summary.json``
+    (:func:`~hosid.output.results.summarize` plus calibration, Hansen's test, state,
+    timings ...; NaN as ``null``) and one PNG per figure of :func:`figures`.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A fit (:mod:`hosid.output.results`).
+    out_dir : str or Path
+        Output directory; existing files of the same names are replaced.
+    dpi : int
+        Resolution of the PNG figures.
+
+    Returns
+    -------
+    list of Path
+        The files written, ``report.html`` first, then ``summary.json`` and the PNGs.
+
+    Raises
+    ------
+    HosidInputError
+        If the directory or a file cannot be written.
+    """
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise HosidInputError(f"cannot create {out_dir}: {exc.strerror or exc}") from None
+    summary = _summary(tree)
+    images = {stem: _png(fig, dpi) for stem, fig in figures(tree).items()}
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("hosid", "output/templates"),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+    )
+    html = env.get_template("report.html.j2").render(**_context(tree, summary, images))
+    files = {
+        "report.html": html.encode("utf-8"),
+        "summary.json": json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"),
+        **{f"{stem}.png": data for stem, data in images.items()},
+    }
+    for name, data in files.items():
+        _write_atomic(out_dir / name, data)
+    return [out_dir / name for name in files]

@@ -1,0 +1,231 @@
+r"""A fit as an arviz ``DataTree``: groups, attributes, summary, netCDF.
+
+Groups (``posterior.nc`` holds the same):
+
+``posterior``
+    Every model parameter (``a1, n1, a2, n2, S0`` for the paper model, plus each added
+    term's) and the equivalent damping ``a1eq`` of eq (65), dims ``(chain, draw)``;
+    emcee's walkers are the chains.
+``sample_stats``
+    ``lp`` (log quasi-posterior) and ``log_prior``.
+``log_likelihood``
+    One variable per likelihood component (``identities``, ``J2``, ``J4A`` ...): its
+    exact share of the quasi-log-likelihood (:mod:`hosid.inference.gmm`).
+``prior``
+    Draws from the priors, constraints applied.
+``observed_data``
+    ``omega`` and the record's displacement spectrum ``Sxx`` on the fitted band.
+``constant_data``
+    ``theta_hat`` (the mode) and ``laplace_cov`` (the calibrated curvature's inverse).
+``likelihood_map`` (optional)
+    The calibrated quasi-log-likelihood over an ``(a1, n1)`` grid, the other parameters
+    at the estimate: the valley of J2 and the twin minima of J4 (paper Figures 7-8).
+
+Root attributes: ``created_at``, ``inference_library`` (emcee) and its version, the
+model, components, calibration, settings, state, sampler diagnostics and timings
+(mappings as JSON strings ``<key>_json``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import arviz as az
+import numpy as np
+import xarray as xr
+
+from ..errors import HosidInputError
+
+__all__ = [
+    "ESS_MIN",
+    "RHAT_MAX",
+    "ConvergenceWarning",
+    "attr",
+    "build_tree",
+    "jsonable",
+    "load",
+    "parameter_names",
+    "save",
+    "summarize",
+]
+
+RHAT_MAX = 1.01
+ESS_MIN = 400.0
+
+
+class ConvergenceWarning(UserWarning):
+    """R-hat or effective sample size outside the accepted range."""
+
+
+def jsonable(value: Any) -> Any:
+    """Plain JSON types: numpy scalars and arrays converted, NaN and inf to ``None``."""
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def build_tree(
+    *,
+    posterior: Mapping[str, np.ndarray],
+    sample_stats: Mapping[str, np.ndarray],
+    log_likelihood: Mapping[str, np.ndarray],
+    prior: Mapping[str, np.ndarray],
+    observed_data: Mapping[str, np.ndarray],
+    constant_data: Mapping[str, np.ndarray],
+    param_names: tuple[str, ...],
+    likelihood_map: Mapping[str, np.ndarray] | None = None,
+    attrs: Mapping[str, Any] | None = None,
+) -> xr.DataTree:
+    """Assemble a fit (module docstring) with :func:`arviz.from_dict`."""
+    omega = np.asarray(observed_data["omega"])
+    dims = {k: ["omega"] for k in observed_data if k != "omega"}
+    dims.update({"theta_hat": ["param"], "laplace_cov": ["param", "param_"]})
+    coords = {"omega": omega, "param": list(param_names), "param_": list(param_names)}
+    obs = {k: v for k, v in observed_data.items() if k != "omega"}
+    tree = az.from_dict(
+        {
+            "posterior": dict(posterior),
+            "sample_stats": dict(sample_stats),
+            "log_likelihood": dict(log_likelihood),
+            "prior": dict(prior),
+            "observed_data": obs,
+            "constant_data": dict(constant_data),
+        },
+        coords=coords,
+        dims=dims,
+    )
+    if likelihood_map is not None:
+        tree["likelihood_map"] = xr.DataTree(
+            xr.Dataset(
+                {"log_likelihood": (("a1", "n1"), np.asarray(likelihood_map["log_likelihood"]))},
+                coords={"a1": likelihood_map["a1"], "n1": likelihood_map["n1"]},
+                attrs={
+                    "what": "calibrated quasi-log-likelihood, other parameters at the estimate"
+                },
+            )
+        )
+    for k, v in (attrs or {}).items():
+        if v is None:
+            continue
+        if isinstance(v, Mapping | list | tuple):
+            tree.attrs[f"{k}_json"] = json.dumps(jsonable(v))
+        elif isinstance(v, bool | np.bool_):
+            tree.attrs[k] = int(v)
+        else:
+            tree.attrs[k] = v
+    return tree
+
+
+def attr(tree: xr.DataTree, key: str, default: Any = None) -> Any:
+    """A root attribute, decoding ``<key>_json``."""
+    if f"{key}_json" in tree.attrs:
+        return json.loads(tree.attrs[f"{key}_json"])
+    return tree.attrs.get(key, default)
+
+
+def parameter_names(tree: xr.DataTree) -> list[str]:
+    """Sampled parameters (posterior variables except the derived ``a1eq``)."""
+    return [k for k in tree["posterior"].data_vars if k != "a1eq"]
+
+
+def save(tree: xr.DataTree, path: str | Path) -> Path:
+    """Write a fit to netCDF (``h5netcdf``)."""
+    path = Path(path)
+    tree.to_netcdf(path, engine="h5netcdf")
+    return path
+
+
+def load(path: str | Path) -> xr.DataTree:
+    """Read a fit written by :func:`save`.
+
+    Raises
+    ------
+    HosidInputError
+        If the file is missing, unreadable or not a hosid fit.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise HosidInputError(f"{path}: no such file")
+    try:
+        tree = xr.open_datatree(path, engine="h5netcdf").load()
+    except (OSError, ValueError) as exc:
+        raise HosidInputError(f"{path}: cannot read ({exc})") from None
+    if "posterior" not in tree.children:
+        raise HosidInputError(f"{path}: not a hosid fit (no posterior group)")
+    return tree
+
+
+def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
+    """Posterior summary (:func:`arviz.summary`) with convergence checks.
+
+    Per variable: ``mean``, ``sd``, the 5 / 25 / 50 / 75 / 95 % quantiles, ``r_hat``,
+    ``ess_bulk``, ``ess_tail``.  ``converged`` is true when every R-hat is below
+    :data:`RHAT_MAX` and every ESS at least :data:`ESS_MIN`; otherwise the failures are
+    listed (and a :class:`ConvergenceWarning` issued when ``warn``).
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        # short chains: arviz warns when walkers (chains) outnumber draws
+        warnings.filterwarnings("ignore", message=".*chain dimension.*", category=UserWarning)
+        table = az.summary(tree, kind="all", ci_prob=0.9, round_to="none")
+    post = tree["posterior"].to_dataset()
+    params: dict[str, dict[str, float]] = {}
+    failures = []
+    for k in post.data_vars:
+        v = post[k].values.ravel()
+        q = np.quantile(v, [0.05, 0.25, 0.5, 0.75, 0.95])
+        row = {
+            "mean": float(table.loc[k, "mean"]),
+            "sd": float(table.loc[k, "sd"]),
+            **{
+                f"q{int(100 * p):02d}": float(x)
+                for p, x in zip((0.05, 0.25, 0.5, 0.75, 0.95), q, strict=True)
+            },
+            "r_hat": float(table.loc[k, "r_hat"]),
+            "ess_bulk": float(table.loc[k, "ess_bulk"]),
+            "ess_tail": float(table.loc[k, "ess_tail"]),
+        }
+        params[k] = row
+        if not row["r_hat"] < RHAT_MAX:
+            failures.append(f"{k}: r_hat {row['r_hat']:.3f} >= {RHAT_MAX}")
+        for e in ("ess_bulk", "ess_tail"):
+            if not row[e] >= ESS_MIN:
+                failures.append(f"{k}: {e} {row[e]:.0f} < {ESS_MIN:.0f}")
+    if failures and warn:
+        warnings.warn(
+            "convergence diagnostics failed: " + "; ".join(failures),
+            ConvergenceWarning,
+            stacklevel=2,
+        )
+    return {
+        "record": attr(tree, "record"),
+        "record_hash": attr(tree, "record_hash"),
+        "model": attr(tree, "model"),
+        "components": attr(tree, "components"),
+        "cost": attr(tree, "cost"),
+        "constrained": bool(attr(tree, "constrained", 1)),
+        "parameters": params,
+        "n_walkers": int(post.sizes["chain"]),
+        "n_draws": int(post.sizes["draw"]),
+        "converged": not failures,
+        "diagnostic_failures": failures,
+        "fit_seconds": attr(tree, "fit_seconds"),
+        "calibration": attr(tree, "calibration"),
+        "settings": attr(tree, "settings"),
+        "truths": attr(tree, "truths"),
+    }

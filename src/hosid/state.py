@@ -1,0 +1,266 @@
+r"""The record turned once into the state every likelihood component reuses.
+
+:class:`RecordState` holds the displacement (and its offset), one spectral derivative
+of the whole record for velocity and acceleration, the block layout, the window and
+the record's scales.  Velocity and acceleration are taken in the frequency domain,
+:math:`\dot x = \mathcal F^{-1}[i\omega\,\mathcal F x]`,
+:math:`\ddot x = \mathcal F^{-1}[-\omega^2\mathcal F x]` below the Nyquist frequency
+:math:`\omega_N = \pi/\Delta t`, after removing the straight line through the end
+points (its slope is added back to the velocity), so that the periodic extension does
+not ring through the record.
+
+**The velocity above the band.**  A sampled record holds no velocity power above
+:math:`\omega_N`, and its aliases put some back.  For an excitation spectrum
+:math:`S_0L(\omega)` the displacement spectrum far above resonance is
+:math:`S_0L(\omega)/\omega^4`, and the variance the spectral velocity lacks is
+
+.. math::
+
+    s^2 = S_0\int_{-\omega_N}^{\omega_N}\sum_{j\ne0}
+        \Big[\frac{1}{(\omega+2j\omega_N)^2}-\frac{\omega^2}{(\omega+2j\omega_N)^4}\Big]
+        L(\omega+2j\omega_N)\,d\omega
+    = \frac{\pi^2}{6}\,\frac{S_0}{\omega_N}\quad(L = 1),
+
+(:func:`velocity_deficit`; 1.5 % of :math:`E[\dot x^2]` at the paper's point, 4 % at
+:math:`S_0 = 1000`).  The missing part is nearly independent of the velocity in the
+band, so every statistic of a function :math:`h` of the velocity is restored as
+:math:`h + \tfrac12 s^2 h''` (:mod:`hosid.components.identities`).  A simulated record
+confirms the correction to 0.1 % for :math:`E|\dot x|^3`, :math:`E\dot x^4` and
+:math:`E[x^2\dot x^2]`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from .errors import HosidInputError
+from .model.terms import Scales
+from .record import Record
+from .spectra.blocks import BlockLayout, block_fft, choose_layout
+from .spectra.windows import Window, get_window
+
+__all__ = ["RecordState", "derivatives", "velocity_deficit"]
+
+
+def derivatives(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Spectral velocity and acceleration of a record (module docstring)."""
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    slope = (x[-1] - x[0]) / ((n - 1) * dt)
+    r = x - (x[0] + slope * dt * np.arange(n))
+    F = np.fft.rfft(r)
+    w = 2.0 * np.pi * np.fft.rfftfreq(n, dt)
+    if n % 2 == 0:
+        F[-1] = 0.0  # the Nyquist bin has no derivative
+    v = np.fft.irfft(1j * w * F, n) + slope
+    a = np.fft.irfft(-(w**2) * F, n)
+    return v, a
+
+
+#: The alias constant c of the module docstring (white excitation): 2 - pi^2/6.
+C_ALIAS = 2.0 - math.pi**2 / 6.0
+
+
+def velocity_deficit(S0, dt: float, shape=None, n_alias: int = 60) -> np.ndarray:
+    r"""The velocity variance :math:`s^2` a sampled record lacks (module docstring).
+
+    ``shape`` is the excitation's spectral shape :math:`L(\omega)` (a callable on an
+    array of frequencies), ``None`` for white noise.
+    """
+    wN = math.pi / dt
+    if shape is None:
+        return np.asarray(S0) * (2.0 - C_ALIAS) / wN
+    u = np.linspace(-1.0, 1.0, 1001)[:, None]
+    j = np.array([k for k in range(-n_alias, n_alias + 1) if k])[None, :]
+    W = (u + 2.0 * j) * wN
+    integrand = 1.0 / W**2 - (u * wN) ** 2 / W**4
+    val = np.trapezoid((integrand * np.asarray(shape(W))).sum(axis=1), u[:, 0] * wN)
+    return np.asarray(S0) * val
+
+
+@dataclass(frozen=True, eq=False)
+class RecordState:
+    """A record prepared once (module docstring); build with :meth:`from_record`."""
+
+    record: Record
+    x: np.ndarray  # displacement, centred unless ``centred`` is False
+    offset: float  # the record's mean
+    v: np.ndarray
+    a: np.ndarray
+    layout: BlockLayout
+    window: Window
+    scales: Scales
+    centred: bool = True
+    noise: dict | None = None  # the noise floor and the filter's velocity loss, if denoised
+    _fft_cache: dict = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def from_record(
+        cls,
+        record: Record,
+        *,
+        block_seconds: float | None = None,
+        window: str = "hann",
+        centred: bool = True,
+        denoise: bool = False,
+    ) -> RecordState:
+        """Derivatives, scales and block layout of ``record``; with ``denoise`` the
+        displacement is Wiener-filtered first (:func:`noise_floor`).
+
+        Raises
+        ------
+        HosidInputError
+            If the record is constant or too short for the blocks.
+        """
+        offset = float(np.mean(record.x))
+        xc = record.x - offset
+        noise = None
+        if denoise:
+            xc, noise = noise_floor(xc, record.dt)
+        v, a = derivatives(xc, record.dt)
+        sigma_x, sigma_v = float(np.std(xc)), float(np.std(v))
+        if not (sigma_x > 0 and sigma_v > 0 and math.isfinite(sigma_v / sigma_x)):
+            raise HosidInputError("the record is constant: it has no response to identify")
+        omega_n = sigma_v / sigma_x
+        layout = choose_layout(record.n, record.dt, omega_n, block_seconds=block_seconds)
+        win = get_window(window)
+        scales = Scales(sigma_x, sigma_v, _level(a, layout, win, omega_n), record.dt)
+        x = xc if centred else xc + offset
+        return cls(record, x, offset, v, a, layout, win, scales, centred, noise)
+
+    def recentred(self, centred: bool) -> RecordState:
+        """The same state with the displacement centred or as recorded."""
+        if centred == self.centred:
+            return self
+        x = self.x - self.offset if centred else self.x + self.offset
+        return RecordState(
+            self.record,
+            x,
+            self.offset,
+            self.v,
+            self.a,
+            self.layout,
+            self.window,
+            self.scales,
+            centred,
+            self.noise,
+        )
+
+    @property
+    def dt(self) -> float:
+        """Sampling interval (s)."""
+        return self.record.dt
+
+    @cached_property
+    def blocks(self) -> dict[str, np.ndarray]:
+        """``x``, ``v``, ``a`` cut into blocks, each ``(B, M)``."""
+        L = self.layout
+        return {k: getattr(self, k)[: L.n_used].reshape(L.B, L.M) for k in ("x", "v", "a")}
+
+    def block_fft(self, key, signal_fn, bins: np.ndarray) -> np.ndarray:
+        """Windowed block FFT of a signal built from the blocks, cached under ``key``.
+
+        ``signal_fn(blocks) -> (B, M)``; the result is ``(B, len(bins))``.
+        """
+        full = (key, bins.tobytes())
+        if full not in self._fft_cache:
+            y = signal_fn(self.blocks).reshape(-1)
+            self._fft_cache[full] = block_fft(y, self.layout, self.window, bins)
+        return self._fft_cache[full]
+
+    def periodogram(self, key: str, bins: np.ndarray) -> np.ndarray:
+        """Block-averaged two-sided spectrum of ``x``, ``v`` or ``a`` on ``bins``."""
+        Y = self.block_fft(("spectrum", key), lambda b: b[key], bins)
+        L = self.layout
+        return np.mean(Y.real**2 + Y.imag**2, axis=0) / (2 * math.pi * L.T * self.window.k2)
+
+    def describe(self) -> dict:
+        """Scales and layout as plain numbers (for attrs and reports)."""
+        s = self.scales
+        return {
+            "sigma_x": s.sigma_x,
+            "sigma_v_band": s.sigma_v,
+            "omega_n": s.omega_n,
+            "omega_nyquist": s.omega_nyquist,
+            "offset": self.offset,
+            "centred": self.centred,
+            **self.layout.as_dict(),
+            "window": self.window.name,
+        }
+
+
+def noise_floor(x: np.ndarray, dt: float) -> tuple[np.ndarray, dict]:
+    r"""Remove white measurement noise from a displacement record (Wiener filter).
+
+    The whole-record periodogram is fitted on :math:`[3\omega_e, 0.9\,\omega_N]`
+    (:math:`\omega_e = \sigma_{\dot x}/\sigma_x`) as
+    :math:`A\sum_j(\omega + 2j\omega_N)^{-4} + N` (the response's tail folded by the
+    sampling, and the noise floor) by
+    non-negative least squares in relative error, and the record is filtered with
+    :math:`G = A\omega^{-4}/(A\omega^{-4} + N)` above :math:`3\omega_e`.  The
+    velocity variance the filter removes from the response, net of the filtered noise
+    it lets through,
+    :math:`\Delta s^2 = 2\int_{3\omega_e}^{\omega_N}[(1 - G^2)A\omega^{-2} -
+    G^2N\omega^2]\,d\omega`, is added to the restoration.
+
+    Returns the filtered record and ``{"A", "N", "sd", "extra_deficit"}`` (``sd`` is
+    :math:`\sqrt{2\pi N/\Delta t}`, the noise standard deviation).
+    """
+    from scipy.optimize import nnls
+
+    n = x.size
+    F = np.fft.rfft(x)
+    w = 2.0 * np.pi * np.fft.rfftfreq(n, dt)
+    P = np.abs(F) ** 2 * dt / (2.0 * np.pi * n)
+    v, _ = derivatives(x, dt)
+    we = float(np.std(v) / np.std(x))
+    wN = math.pi / dt
+    sel = (w >= 3.0 * we) & (w <= 0.9 * wN)
+    if sel.sum() < 16:
+        raise HosidInputError(
+            "measurement_noise needs a spectral tail above 3 w_n: the sampling is too coarse"
+        )
+    # average the periodogram over chunks of 64 neighbouring bins before the fit
+    k = np.flatnonzero(sel)
+    width = 64 if k.size >= 256 else 1
+    k = k[: (k.size // width) * width].reshape(-1, width)
+    Ps, ws = P[k].mean(axis=1), w[k].mean(axis=1)
+    tail = sum((ws + 2 * j * wN) ** -4.0 for j in range(-20, 21))  # the folded w^-4 tail
+    coef, _ = nnls(np.stack([tail / Ps, 1.0 / Ps], axis=1), np.ones_like(Ps))
+    A, N = float(coef[0]), float(coef[1])
+    info = {"A": A, "N": N, "sd": math.sqrt(2 * math.pi * N / dt), "extra_deficit": 0.0}
+    if N <= 0 or A <= 0:
+        return x, info
+    G = np.ones_like(w)
+    hf = w >= 3.0 * we
+    G[hf] = A * w[hf] ** -4.0 / (A * w[hf] ** -4.0 + N)
+    wg = np.linspace(3.0 * we, wN, 4001)
+    g = A * wg**-4.0 / (A * wg**-4.0 + N)
+    info["extra_deficit"] = float(
+        2.0 * np.trapezoid((1 - g**2) * A * wg**-2.0 - g**2 * N * wg**2, wg)
+    )
+    return np.fft.irfft(F * G, n), info
+
+
+def _level(a: np.ndarray, layout: BlockLayout, window: Window, omega_n: float) -> float:
+    r"""A rough excitation level: the median acceleration periodogram on
+    :math:`[3\omega_n, 5\omega_n]` (clipped to half the Nyquist frequency), where the
+    response acceleration follows the force; a scale for priors, not an estimator.
+    """
+    bins = layout.bins(
+        min(3 * omega_n, 0.25 * math.pi / layout.dt),
+        min(5 * omega_n, 0.5 * math.pi / layout.dt),
+        k_min=2,
+    )
+    if bins.size == 0:
+        bins = np.arange(2, layout.M // 2)
+    Y = block_fft(a, layout, window, bins)
+    P = np.mean(Y.real**2 + Y.imag**2, axis=0) / (2 * math.pi * layout.T * window.k2)
+    level = float(np.median(P))
+    if not (level > 0 and math.isfinite(level)):
+        raise HosidInputError("the record has no acceleration spectrum to scale the priors")
+    return level

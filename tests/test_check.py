@@ -1,0 +1,429 @@
+"""Tests of hosid.check: measures, gaps, screening draws and the diagnose workflow.
+
+The measure tests share 16 replicate records of 500 s (dt = 0.02) from the paper
+oscillator; the end-to-end tests diagnose 1000 s records (a hidden quadratic
+stiffness, and a clean record) with fewer replicates than the default.  Numbers quoted
+in comments were measured on these records.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+from scipy import stats
+
+import hosid.check.diagnose as dg
+from hosid.check.diagnose import _decide, diagnose
+from hosid.check.gaps import gaps, robust_z
+from hosid.check.measures import (
+    ENERGY_LEVELS,
+    V_LEVELS,
+    X_LEVELS,
+    MeasureSpec,
+    compare,
+    drift_function,
+    measures,
+)
+from hosid.check.model_check import check_model
+from hosid.check.posterior import screen_sample
+from hosid.check.statistics import potential
+from hosid.errors import HosidInputError
+from hosid.inference.estimate import estimate
+from hosid.model import PAPER_PARAMS, Model, simulate
+from hosid.output.diagnosis import gap_figure, measure_gap_figure, measures_figure, write_diagnosis
+from hosid.record import Record
+
+DT, DURATION, N_REPLICATES = 0.02, 500.0, 16
+LINEAR = {"a1": 1.0, "a2": 25.0, "S0": 10.0}
+MEASURES = (
+    "psd",
+    "psd_tail",
+    "pdf_x",
+    "pdf_v",
+    "pdf_energy",
+    "skewness",
+    "kurtosis",
+    "mean",
+    "bispectrum",
+)
+FORCE_MEASURES = ("force_psd", "force_moments")
+
+
+def _sim(params, seed, duration=DURATION):
+    return simulate(params, duration=duration, dt=DT, rng=np.random.default_rng(seed))
+
+
+def _paper(seed, **extra):
+    return _sim({**PAPER_PARAMS, **extra}, seed)
+
+
+@pytest.fixture(scope="module")
+def replicates():
+    rng = np.random.default_rng(7)
+    return [
+        simulate(PAPER_PARAMS, duration=DURATION, dt=DT, rng=c) for c in rng.spawn(N_REPLICATES)
+    ]
+
+
+@pytest.fixture(scope="module")
+def spec():
+    """One layout for every test record (all come from the same oscillator)."""
+    return MeasureSpec.from_record(_paper(99))
+
+
+@pytest.fixture(scope="module")
+def replicate_measures(replicates, spec):
+    return [measures(r, spec=spec, drift=PAPER_PARAMS) for r in replicates]
+
+
+def _gap(record, spec, replicate_measures):
+    return gaps(measures(record, spec=spec, drift=PAPER_PARAMS), replicate_measures)
+
+
+# ------------------------------------------------------------------ oracles
+def _linear_autocovariance(p, tau):
+    """R_x(tau) of x'' + a1 x' + a2 x = f, two-sided white level S0."""
+    wn = np.sqrt(p["a2"])
+    zeta = p["a1"] / (2 * wn)
+    wd = wn * np.sqrt(1 - zeta**2)
+    var = np.pi * p["S0"] / (p["a1"] * p["a2"])
+    t = np.abs(tau)
+    return var * np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta * wn / wd * np.sin(wd * t))
+
+
+def _expected_log_bands(p, spec, edges):
+    r"""Exact expectation of the Hann block periodogram of the sampled process,
+    :math:`E|X_k|^2 = \Delta t^2 \sum_l R(l\Delta t) e^{-i\omega_k l\Delta t}
+    \sum_n D_n D_{n+l}` (leakage and aliasing included), averaged over each band.
+    """
+    M, dt = spec.block, spec.dt
+    D = 0.5 * (1 - np.cos(2 * np.pi * np.arange(M) / M))
+    lags = np.arange(-(M - 1), M)
+    overlap = np.correlate(D, D, mode="full")
+    R = _linear_autocovariance(p, lags * dt)
+    omega = 2 * np.pi * np.fft.rfftfreq(M, dt)
+    EX2 = dt**2 * np.real(np.exp(-1j * np.outer(omega, lags * dt)) @ (R * overlap))
+    P = EX2 / (2 * np.pi * M * dt * 0.375)
+    idx = np.digitize(omega, edges) - 1
+    return np.array([np.log(P[idx == b].mean()) for b in range(len(edges) - 1)])
+
+
+@pytest.fixture(scope="module")
+def linear_measures():
+    record = _sim(LINEAR, 20240602, duration=4000.0)
+    spec = MeasureSpec.from_record(record)
+    return spec, measures(record, spec=spec, drift=LINEAR), measures(record, spec=spec)
+
+
+def test_psd_matches_the_exact_linear_spectrum(linear_measures):
+    # 195 blocks x 3-5 bins a band: sd of a log band mean 0.03-0.04
+    spec, m, _ = linear_measures
+    assert spec.block == 1024
+    expected = _expected_log_bands(LINEAR, spec, np.asarray(spec.psd_edges))
+    np.testing.assert_allclose(m["psd"], expected, atol=0.1)
+    tail = np.diff(_expected_log_bands(LINEAR, spec, np.asarray(spec.tail_edges)))
+    np.testing.assert_allclose(m["psd_tail"], tail, atol=0.08)
+
+
+def test_gaussian_record_has_gaussian_shape_measures(linear_measures):
+    # a linear oscillator under white noise is Gaussian: x and v normal, E/mean(E) ~
+    # Exp(1), every odd statistic 0, the inferred force white
+    _, m, free = linear_measures
+    np.testing.assert_allclose(m["pdf_x"], stats.norm.ppf(X_LEVELS), atol=0.06)
+    half_normal = stats.norm.ppf((1 + np.array(V_LEVELS)) / 2)
+    np.testing.assert_allclose(m["pdf_v"], half_normal, atol=0.06)
+    exp_log_q = np.log(-np.log1p(-np.array(ENERGY_LEVELS)))
+    np.testing.assert_allclose(m["pdf_energy"], exp_log_q, atol=0.06)
+    np.testing.assert_allclose(free["pdf_energy"], exp_log_q, atol=0.06)
+    np.testing.assert_allclose(m["skewness"], 0.0, atol=0.06)
+    # the kurtosis fluctuates with the envelope: sd 0.05-0.07 over 12 records of 4000 s;
+    # this one has 0.16 for both x and v (and 0.18, 0.14 in its halves)
+    np.testing.assert_allclose(m["kurtosis"], 0.0, atol=0.25)
+    np.testing.assert_allclose(m["bispectrum"], 0.0, atol=0.05)
+    np.testing.assert_allclose(m["force_psd"], 0.0, atol=0.15)
+    np.testing.assert_allclose(m["force_moments"], 0.0, atol=0.08)
+    assert abs(m["mean"][0]) < 0.05
+
+
+def test_drift_and_potential_follow_the_equation_of_motion():
+    p = {"a1": 9.0, "n1": 0.5, "a2": 25.0, "n2": 5.0, "b2": 3.0, "mu": 4.0, "m": 7.0, "S0": 1.0}
+    x, v = np.array([-1.5, 0.3, 2.0]), np.array([2.0, -0.5, 0.0])
+    expected = 9 * v + 0.5 * v * np.abs(v) + 25 * x + 5 * x**3 + 3 * x**2 + 4 * np.sign(v) - 7.0
+    np.testing.assert_allclose(drift_function(p)(x, v), expected)
+    grid = np.linspace(-3.0, 2.0, 501)
+    exact = 12.5 * grid**2 + 1.25 * grid**4 + grid**3 - 7.0 * grid  # v = 0: no damping
+    np.testing.assert_allclose(potential(grid, drift_function(p)), exact - exact.min(), atol=1e-3)
+    with pytest.raises(HosidInputError, match="unknown parameter"):
+        drift_function({"a3": 1.0})
+
+
+def test_layout_is_fixed_by_the_spec(spec, replicate_measures):
+    m = measures(_paper(3, b2=5.0), spec=spec, drift=PAPER_PARAMS)
+    assert tuple(m) == MEASURES + FORCE_MEASURES
+    for k in m:
+        assert m[k].shape == replicate_measures[0][k].shape and m[k].ndim == 1
+    assert len(m["psd_tail"]) == len(spec.tail_edges) - 2
+    assert tuple(measures(_paper(3), spec=spec)) == MEASURES
+
+
+# ----------------------------------------------------------------- the gap
+def test_gap_equations_on_exact_replicates():
+    # replicates with mean 0 and sd 1 exactly (ddof=1): z = obs / sqrt(1 + 1/R)
+    R = 8
+    base = np.array([-1.5, -1, -0.5, 0, 0, 0.5, 1, 1.5])
+    base = base / base.std(ddof=1)
+    reps = [{"a": np.array([b, -b]), "b": np.array([b])} for b in base]
+    g = gaps({"a": np.array([3.0, 0.0]), "b": np.array([-2.0])}, reps)
+    s = np.sqrt(1 + 1 / R)
+    np.testing.assert_allclose(g["z"]["a"], [3 / s, 0.0])
+    assert g["measures"]["a"] == pytest.approx(np.sqrt(9 / 2) / s)
+    assert g["measures"]["b"] == pytest.approx(2 / s)
+    assert g["total"] == pytest.approx(np.sqrt((9 / 2 + 4) / 2) / s)
+    assert g["worst"] == "a" and g["n_replicates"] == R
+    assert g["null"].shape == (R,) and 0 < g["p_value"] <= 1
+
+
+def test_robust_z():
+    null = np.array([0.8, 0.9, 1.0, 1.1, 1.2, np.nan])
+    mad = 1.4826 * 0.1
+    assert robust_z(1.0 + 3 * mad, null) == pytest.approx(3.0)
+    assert robust_z(math.inf, null) == math.inf
+
+
+def test_null_gap_is_of_order_one(spec, replicate_measures):
+    # records from the replicates' own model
+    for seed in (100, 101, 102):
+        g = _gap(_paper(seed), spec, replicate_measures)
+        assert 0.5 < g["total"] < 1.8, g["measures"]
+        assert max(g["measures"].values()) < 3.5
+        assert 0.8 < np.median(g["null"]) < 1.3
+        assert g["p_value"] > 0.05
+
+
+@pytest.mark.parametrize(
+    ("effect", "moved", "quiet"),
+    [
+        # b2 = 20: the mean shifts by -0.9 (0.8 sd), the inferred force turns skewed
+        (
+            {"b2": 20.0},
+            {"mean": 15.0, "force_moments": 10.0, "pdf_energy": 10.0, "pdf_x": 3.0},
+            ("psd_tail",),
+        ),
+        # m = 50: the mean shifts, x is skewed on the cubic spring; the drift is right,
+        # so the inferred force stays Gaussian
+        (
+            {"m": 50.0},
+            {"mean": 15.0, "skewness": 3.0, "bispectrum": 3.0},
+            ("force_moments", "force_psd", "psd_tail"),
+        ),
+        # noise 0.05 (4 % of sigma_x): a floor in the tail, a rough velocity
+        ({"noise_sd": 0.05}, {"psd_tail": 10.0, "kurtosis": 3.0}, ("mean", "psd", "pdf_x")),
+        # a coloured force, corner 3 rad/s below resonance: steep tail, non-white force
+        (
+            {"wc": 3.0},
+            {"psd_tail": 10.0, "force_psd": 8.0, "psd": 6.0},
+            ("mean", "skewness", "force_moments"),
+        ),
+    ],
+    ids=["quadratic_stiffness", "excitation_mean", "measurement_noise", "coloured_excitation"],
+)
+def test_hidden_effect_opens_the_gap_where_expected(
+    effect, moved, quiet, spec, replicate_measures
+):
+    g = _gap(_paper(200, **effect), spec, replicate_measures)
+    for name, low in moved.items():
+        assert g["measures"][name] > low, (name, g["measures"])
+    for name in quiet:
+        assert g["measures"][name] < 2.5, (name, g["measures"])
+    assert g["total"] > 4.0
+    assert g["p_value"] == pytest.approx(1 / (N_REPLICATES + 1))
+
+
+def test_compare_measures_everything_with_the_record_layout(replicates):
+    record = _paper(300, m=50.0)
+    g = compare(record, replicates[:6], drift=PAPER_PARAMS)
+    assert g["spec"] == MeasureSpec.from_record(record)
+    assert g["measures"]["mean"] > 10.0 and g["n_replicates"] == 6
+
+
+def test_gaps_reject_too_few_or_misaligned_replicates(replicate_measures):
+    obs = replicate_measures[0]
+    with pytest.raises(HosidInputError, match="at least 4 replicates"):
+        gaps(obs, replicate_measures[:3])
+    bad = [dict(r) for r in replicate_measures[:5]]
+    bad[2]["psd"] = bad[2]["psd"][:-1]
+    with pytest.raises(HosidInputError, match="layout of 'psd'"):
+        gaps(obs, bad)
+    missing = [{k: v for k, v in r.items() if k != "mean"} for r in replicate_measures[:5]]
+    with pytest.raises(HosidInputError, match="lacks the measure 'mean'"):
+        gaps(obs, missing)
+    with pytest.raises(HosidInputError, match="record lacks"):
+        gaps({k: v for k, v in obs.items() if k != "mean"}, replicate_measures[:5])
+    with pytest.raises(HosidInputError, match="not finite"):
+        gaps({**obs, "mean": np.array([np.nan])}, replicate_measures[:5])
+
+
+def test_measures_and_spec_reject_bad_records(spec, replicates):
+    with pytest.raises(HosidInputError, match="differs from the spec"):
+        measures(Record(replicates[0].x[::2], 0.04), spec=spec)
+    with pytest.raises(HosidInputError, match="too short for 8 blocks"):
+        measures(Record(replicates[0].x[:5000], DT), spec=spec)
+    with pytest.raises(HosidInputError, match="drift must be"):
+        measures(replicates[0], spec=spec, drift=3.0)
+    with pytest.raises(HosidInputError, match="replicate 1 has"):
+        compare(replicates[0], [replicates[1], Record(replicates[2].x[:-10], DT)])
+    with pytest.raises(HosidInputError, match="too short"):
+        MeasureSpec.from_record(Record(replicates[0].x[:4000], DT), block_seconds=20.48)
+    with pytest.raises(HosidInputError, match="natural frequency"):
+        MeasureSpec.from_record(replicates[0], omega_n=0.5, block_seconds=20.48)
+
+
+# ------------------------------------------------------- draws and one check
+@pytest.fixture(scope="module")
+def clean_1000():
+    return _sim(PAPER_PARAMS, 8, duration=1000.0)
+
+
+def test_screen_sample_follows_the_estimate_and_respects_the_priors(clean_1000):
+    est = estimate(clean_1000, "paper")
+    sample, info = screen_sample(est, np.random.default_rng(0))
+    assert sample.shape == (2000, 5) and info["ess"] > 1000
+    sd = np.array(list(est.sd.values()))
+    assert np.all(np.abs(sample.mean(axis=0) - est.theta) < 0.3 * sd)
+    np.testing.assert_allclose(sample.std(axis=0), sd, rtol=0.2)
+    # noise_sd at its prior's boundary: the curvature is singular there (sd ~1e3), the
+    # importance weights put the draws where the quasi-likelihood is (emcee: ~0.001)
+    noisy = estimate(clean_1000, Model.from_spec("paper").with_term("measurement_noise"))
+    sample, info = screen_sample(noisy, np.random.default_rng(1))
+    assert np.all(sample[:, -1] >= 0) and np.quantile(sample[:, -1], 0.95) < 0.01
+    assert info["ess"] > 500
+
+
+def test_diverging_draws_give_an_infinite_gap(clean_1000, monkeypatch):
+    def escaping(self, theta, **kw):
+        raise HosidInputError("the simulated response escaped")
+
+    monkeypatch.setattr(Model, "simulate", escaping)
+    seeds = np.random.SeedSequence(0).spawn(8)
+    chk = check_model(
+        clean_1000, "paper", rng=np.random.default_rng(0), replicate_seeds=seeds, method="screen"
+    )
+    assert chk.diverged and chk.total == math.inf and chk.z == math.inf
+    assert chk.failed_replicates == 5 and chk.p_value == 0.0
+
+
+def _stub(total, z):
+    return SimpleNamespace(total=total, z=z, diverged=not math.isfinite(total))
+
+
+def test_decision_rule():
+    cands = {"quadratic_stiffness": _stub(1.0, 0.0), "excitation_mean": _stub(2.5, 5.0)}
+    assert _decide(_stub(3.0, 8.0), cands, 3.0, 0.75)[0] == "quadratic_stiffness"
+    named, why = _decide(_stub(3.0, 2.0), cands, 3.0, 0.75)
+    assert named is None and "explains the record" in why
+    named, why = _decide(_stub(1.2, 4.0), cands, 3.0, 0.75)
+    assert named is None and "no candidate explains it" in why
+    named, why = _decide(_stub(math.inf, math.inf), cands, 3.0, 0.75)
+    assert named == "quadratic_stiffness" and "diverge" in why
+    assert _decide(_stub(3.0, 8.0), {}, 3.0, 0.75)[0] is None
+
+
+def test_bad_arguments(clean_1000):
+    rng = np.random.default_rng(0)
+    with pytest.raises(HosidInputError, match="not candidate effects"):
+        diagnose(clean_1000, "paper", rng=rng, candidates=["linear_stiffness"])
+    with pytest.raises(HosidInputError, match="already in the base"):
+        diagnose(clean_1000, "paper", rng=rng, candidates=["cubic_stiffness"])
+    with pytest.raises(HosidInputError, match="at least 8 replicates"):
+        diagnose(clean_1000, "paper", rng=rng, replicates=3)
+    with pytest.raises(HosidInputError, match="unknown model term"):
+        diagnose(clean_1000, "papr", rng=rng)
+    with pytest.raises(HosidInputError, match="shrink"):
+        diagnose(clean_1000, "paper", rng=rng, shrink=2.0)
+    with pytest.raises(TypeError, match="Generator"):
+        diagnose(clean_1000, "paper", rng=0)
+
+
+# ---------------------------------------------------------------- end to end
+@pytest.fixture(scope="module")
+def hidden_b2():
+    rec = _sim({**PAPER_PARAMS, "b2": 6.0}, 7, duration=1000.0)
+    return diagnose(rec, "paper", rng=np.random.default_rng(0), replicates=12)
+
+
+def test_hidden_quadratic_stiffness_is_named(hidden_b2):
+    d = hidden_b2
+    assert d.named_effect == "quadratic_stiffness"
+    # over diagnose seeds 0-3: base gap 2.2-3.4 (z 5.5-12), screened 0.94-1.21, fitted
+    # 0.94-1.20 (x0.28-0.53 of the base gap); the next best candidate leaves 2.1-2.5
+    assert d.base.z >= 3.0 and d.gap_after <= 0.75 * d.gap_before
+    assert d.candidates["quadratic_stiffness"].total <= 0.75 * d.gap_before
+    others = [c.total for k, c in d.candidates.items() if k != "quadratic_stiffness"]
+    assert min(others) > 1.5 * d.candidates["quadratic_stiffness"].total
+    assert d.base.method == d.final.method == "emcee"
+    assert {c.method for c in d.candidates.values()} == {"screen"}
+    assert set(d.candidates) == set(Model.from_spec("paper").candidates)
+    lo, hi = d.final.interval(0.9)["b2"]
+    assert lo <= 6.0 <= hi
+    assert "b2" in d.final_tree["posterior"].data_vars
+    rep = d.report()
+    assert rep["final_model"] == [*rep["base"][:4], "quadratic_stiffness", "excitation_level"]
+    for key in ("hansen_before", "hansen_after"):
+        assert set(rep[key]) == {"J", "df", "p_value"}
+    assert rep["hansen_after"]["df"] == rep["hansen_before"]["df"] + 1
+    for c in rep["candidates"]:
+        assert {"effect", "gap_after", "shrink", "z", "p_value", "estimate", "hansen"} <= set(c)
+
+
+def test_no_missing_effect_names_none(clean_1000, capsys):
+    real = dg.check_model
+
+    def flaky(record, model, **kw):
+        if "coulomb_friction" in model.names:
+            raise HosidInputError("the estimating equations have no finite solution")
+        return real(record, model, **kw)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(dg, "check_model", flaky)
+        d = diagnose(clean_1000, "paper", rng=np.random.default_rng(1), replicates=12)
+    assert capsys.readouterr().err == ""  # progress=False: silent
+    # over diagnose seeds 1-4: base gap 0.94-1.03, z from -1.0 to -0.3
+    assert d.named_effect is None and d.base.z < 3.0
+    assert d.gap_after == d.gap_before and d.final is d.base
+    rep = d.report()
+    assert rep["final_model"] == rep["base"]
+    failed = [c for c in rep["candidates"] if c["gap_after"] is None]
+    assert [c["effect"] for c in failed] == ["coulomb_friction"]
+    assert "no finite solution" in failed[0]["error"]
+
+
+def test_report_files(hidden_b2, tmp_path):
+    for fig in (gap_figure(hidden_b2), measure_gap_figure(hidden_b2), measures_figure(hidden_b2)):
+        assert isinstance(fig, Figure)
+    paths = write_diagnosis(hidden_b2, tmp_path / "out")
+    assert [p.name for p in paths[:2]] == ["report.json", "report.html"]
+    assert all(p.is_file() for p in paths)
+    rep = json.loads(paths[0].read_text())
+    assert rep["named_effect"] == "quadratic_stiffness"
+    text = paths[1].read_text()
+    assert text.count("data:image/png;base64,") == 3
+    assert "Named effect: quadratic_stiffness" in text and "Hansen" in text
+    # a diverged base: infinite gaps become null in JSON and "diverged" on the page
+    base = hidden_b2.base
+    gap = {
+        **base.gap,
+        "total": math.inf,
+        "measures": dict.fromkeys(base.gap["measures"], math.inf),
+    }
+    gap["z"] = {k: np.full(v.shape, np.inf) for k, v in base.gap["z"].items()}
+    diverged = dataclasses.replace(hidden_b2, base=dataclasses.replace(base, gap=gap))
+    paths = write_diagnosis(diverged, tmp_path / "div")
+    rep = json.loads(paths[0].read_text())
+    assert rep["gap_before"] is None and rep["base_diverged"] is True
+    assert "diverged" in paths[1].read_text()

@@ -1,0 +1,243 @@
+"""The output layer: figures (structure, not pixels), the HTML report and summary.json."""
+
+from __future__ import annotations
+
+import json
+import math
+from html import escape
+
+import numpy as np
+import pytest
+from matplotlib.collections import PolyCollection
+from matplotlib.figure import Figure
+
+from hosid.errors import HosidInputError
+from hosid.inference import fit
+from hosid.model import PAPER_PARAMS, simulate
+from hosid.output import plots
+from hosid.output.report import figures, write_report
+from hosid.output.results import attr, summarize
+
+PAPER = ["a1", "n1", "a2", "n2", "S0"]
+STEMS = ["corner", "likelihood_map", "restoring_force", "trace", "spectrum"]
+
+
+def _record(seed: int):
+    return simulate(PAPER_PARAMS, duration=500.0, rng=np.random.default_rng(seed))
+
+
+@pytest.fixture(scope="module")
+def paper_fit():
+    return fit(_record(11), n_steps=300, seed=1, progress=False, truths=PAPER_PARAMS)
+
+
+@pytest.fixture(scope="module")
+def free_fit():
+    return fit(_record(12), n_steps=300, seed=2, progress=False, constrained=False)
+
+
+@pytest.fixture(scope="module")
+def linear_fit():
+    return fit(_record(13), model="linear", n_steps=300, seed=3, progress=False)
+
+
+def _legend(ax) -> list[str]:
+    legend = ax.get_legend()
+    return [t.get_text() for t in legend.get_texts()] if legend else []
+
+
+# ------------------------------------------------------------------ labels
+def test_labels_and_units():
+    assert plots.label("a1") == "$a_1$ (1/s)"
+    assert plots.label("n2", "mm") == "$n_2$ (1/(mm² s²))"
+    assert plots.unit("S0") == "m²/s³"
+    assert plots.unit("a1eq") == "1/s"
+    assert plots.unit("unknown") == ""
+    assert plots.label("x12") == "$x_{12}$"
+
+
+def test_known_truths_derive_a1eq(paper_fit):
+    known = plots.known_truths(paper_fit)
+    sigma_v = paper_fit.attrs["sigma_v"]
+    expected = PAPER_PARAMS["a1"] + PAPER_PARAMS["n1"] * math.sqrt(8 / math.pi) * sigma_v
+    assert known["a1eq"] == pytest.approx(expected, rel=1e-12)
+
+
+# ------------------------------------------------------------------ figures
+def test_corner_plot_has_parameters_a1eq_units_and_titles(paper_fit):
+    fig = plots.corner_plot(paper_fit)
+    assert isinstance(fig, Figure)
+    k = len(PAPER) + 1
+    assert len(fig.axes) == k * k
+    bottom = [fig.axes[(k - 1) * k + j].get_xlabel() for j in range(k)]
+    assert bottom == [plots.label(p) for p in [*PAPER, "a1eq"]]
+    assert "(m²/s³)" in bottom[4] and "(1/m)" in bottom[1]
+    titles = [fig.axes[i * k + i].get_title() for i in range(k)]
+    assert all("=" in t for t in titles)  # median with 5/95 % offsets
+    # truths drawn as vertical lines on the diagonal at the true a1
+    xs = [line.get_xdata()[0] for line in fig.axes[0].get_lines()]
+    assert any(x == pytest.approx(PAPER_PARAMS["a1"]) for x in xs)
+
+
+def test_corner_plot_linear_model_drops_redundant_a1eq(linear_fit):
+    fig = plots.corner_plot(linear_fit)
+    assert len(fig.axes) == 9
+    assert [fig.axes[6 + j].get_xlabel() for j in range(3)] == [
+        plots.label(p) for p in ("a1", "a2", "S0")
+    ]
+
+
+def test_likelihood_map_constrained_shades_inadmissible(paper_fit):
+    fig = plots.likelihood_map_plot(paper_fit)
+    ax = fig.axes[0]
+    assert len(fig.axes) == 2  # the map and its colour bar
+    assert ax.get_xlabel() == "$a_1$ (1/s)" and ax.get_ylabel() == "$n_1$ (1/m)"
+    assert {"posterior draws", "truth", "inadmissible"} <= set(_legend(ax))
+    shade = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    assert shade, "no shaded region"
+    # the shaded polygon lies where a1 + n1 sqrt(8/pi) sigma_v <= 0 (eq 65)
+    c = math.sqrt(8 / math.pi) * paper_fit.attrs["sigma_v"]
+    vertices = np.concatenate([p.vertices for p in shade[-1].get_paths()])
+    assert np.all(vertices[:, 0] + c * vertices[:, 1] <= 1e-9 * c)
+    lmap = paper_fit["likelihood_map"]
+    assert ax.get_xlim() == pytest.approx((lmap["a1"].values[0], lmap["a1"].values[-1]))
+
+
+def test_likelihood_map_unconstrained(free_fit):
+    fig = plots.likelihood_map_plot(free_fit)
+    ax = fig.axes[0]
+    labels = _legend(ax)
+    assert "posterior draws" in labels and "inadmissible" not in labels
+    assert any("eq 65" in t for t in labels)
+    assert "unconstrained" in ax.get_title()
+
+
+def test_likelihood_map_absent_for_linear_model(linear_fit):
+    assert "likelihood_map" not in linear_fit.children
+    assert plots.likelihood_map_plot(linear_fit) is None
+
+
+def test_restoring_force_band_spans_four_sigma(paper_fit):
+    fig = plots.restoring_force_plot(paper_fit)
+    (ax,) = fig.axes
+    sigma_x = attr(paper_fit, "state")["sigma_x"]
+    median = next(line for line in ax.get_lines() if line.get_label() == "posterior median")
+    x, y = median.get_xdata(), median.get_ydata()
+    assert x[0] == pytest.approx(-4 * sigma_x) and x[-1] == pytest.approx(4 * sigma_x)
+    post = paper_fit["posterior"]
+    direct = np.median(post["a2"].values * x[-1] + post["n2"].values * x[-1] ** 3)
+    assert y[-1] == pytest.approx(direct, rel=0.02)
+    assert {"5-95 % band", "posterior median", "truth"} <= set(_legend(ax))
+    assert ax.get_xlabel() == "$x$ (m)" and "(m/s²)" in ax.get_ylabel()
+
+
+def test_restoring_force_linear_model(linear_fit):
+    (ax,) = plots.restoring_force_plot(linear_fit).axes
+    assert "a_2 x" in ax.get_ylabel() and "n_2" not in ax.get_ylabel()
+    assert "truth" not in _legend(ax)
+
+
+def test_trace_plot_rows_and_walkers(paper_fit):
+    fig = plots.trace_plot(paper_fit, max_walkers=4)
+    assert [ax.get_ylabel() for ax in fig.axes] == [plots.label(p) for p in [*PAPER, "lp"]]
+    assert all(len(ax.get_lines()) == 4 for ax in fig.axes)
+    assert fig.axes[-1].get_xlabel() == "step after burn-in"
+    with pytest.raises(ValueError, match="max_walkers"):
+        plots.trace_plot(paper_fit, max_walkers=0)
+
+
+def test_spectrum_plot_linear_equivalent(paper_fit):
+    (ax,) = plots.spectrum_plot(paper_fit).axes
+    assert ax.get_yscale() == "log"
+    assert ax.get_xlabel() == r"$\omega$ (rad/s)" and "m² s" in ax.get_ylabel()
+    data, model = ax.get_lines()
+    obs = paper_fit["observed_data"]
+    np.testing.assert_array_equal(data.get_ydata(), obs["Sxx"].values)
+    w = obs["omega"].values
+    a2eq = paper_fit.attrs["sigma_v"] ** 2 / attr(paper_fit, "state")["sigma_x"] ** 2
+    s0, a1eq = (np.median(paper_fit["posterior"][p].values) for p in ("S0", "a1eq"))
+    expected = s0 / ((a2eq - w**2) ** 2 + a1eq**2 * w**2)
+    np.testing.assert_allclose(model.get_ydata(), expected, rtol=1e-12)
+    # the linear equivalent follows the record within a factor of two over the band
+    ratio = model.get_ydata() / data.get_ydata()
+    assert np.median(ratio) == pytest.approx(1.0, abs=0.5)
+
+
+def test_unit_attribute_relabels(paper_fit):
+    tree = paper_fit.copy(deep=True)
+    tree.attrs["unit"] = "mm"
+    fig = plots.restoring_force_plot(tree)
+    assert fig.axes[0].get_xlabel() == "$x$ (mm)"
+    assert plots.likelihood_map_plot(tree).axes[0].get_ylabel() == "$n_1$ (1/mm)"
+
+
+def test_figures_by_stem(paper_fit, linear_fit):
+    assert list(figures(paper_fit)) == STEMS
+    assert list(figures(linear_fit)) == [s for s in STEMS if s != "likelihood_map"]
+
+
+# ------------------------------------------------------------------ report
+def test_write_report_files_html_and_summary(paper_fit, tmp_path):
+    out = tmp_path / "new" / "report"
+    paths = write_report(paper_fit, out, dpi=40)
+    names = ["report.html", "summary.json", *(f"{s}.png" for s in STEMS)]
+    assert [p.name for p in paths] == names
+    assert sorted(p.name for p in out.iterdir()) == sorted(names)  # no temporary files
+    for p in paths[2:]:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    html = paths[0].read_text(encoding="utf-8")
+    assert html.count("data:image/png;base64,") == len(STEMS)
+    for p in [*PAPER, "a1eq"]:
+        assert f"<td>{p}</td>" in html
+    assert "gmm" in html and "Hansen" in html
+    assert "m²/s³" in html and "<th>truth</th>" in html
+    summary = json.loads(paths[1].read_text(encoding="utf-8"))
+    assert set(summary["parameters"]) == {*PAPER, "a1eq"}
+    assert summary["calibration"]["method"] == "gmm"
+    assert set(summary["hansen"]) >= {"J", "df", "p_value"}
+    assert summary["state"]["block_seconds"] > 0 and summary["state"]["blocks"] >= 1
+    assert set(summary["timings"]) >= {"estimate", "calibration", "sampling"}
+    assert summary["units"]["n2"] == "1/(m² s²)"
+    expected = summarize(paper_fit, warn=False)
+    assert summary["converged"] == expected["converged"]
+    assert ("Not converged" in html) == (not expected["converged"])
+
+
+def test_write_report_linear_model(linear_fit, tmp_path):
+    paths = write_report(linear_fit, tmp_path, dpi=40)
+    assert "likelihood_map.png" not in [p.name for p in paths]
+    html = paths[0].read_text(encoding="utf-8")
+    assert "<td>n1</td>" not in html and "<td>a2</td>" in html
+    assert "<th>truth</th>" not in html
+    assert "n1" not in json.loads(paths[1].read_text(encoding="utf-8"))["parameters"]
+
+
+def test_report_banner_lists_failures(paper_fit, tmp_path):
+    tree = paper_fit.copy(deep=True)
+    tree["posterior"] = tree["posterior"].isel(draw=slice(0, 30))
+    html = write_report(tree, tmp_path, dpi=30)[0].read_text(encoding="utf-8")
+    failures = summarize(tree, warn=False)["diagnostic_failures"]
+    assert failures and "Not converged" in html
+    assert all(f"<li>{escape(f)}</li>" in html for f in failures)
+
+
+def test_report_bootstrap_calibration_and_escaping(paper_fit, tmp_path):
+    tree = paper_fit.copy(deep=True)
+    cal = attr(tree, "calibration")
+    cal.update(method="bootstrap", bias={"a1": 0.125}, sd_ratio={"a1": 1.25, "n1": 0.5})
+    tree.attrs["calibration_json"] = json.dumps(cal)
+    tree.attrs["record"] = "<b>rec</b>"
+    html = write_report(tree, tmp_path, dpi=30)[0].read_text(encoding="utf-8")
+    assert "bootstrap bias" in html and "<td>0.125</td>" in html and "<td>1.25</td>" in html
+    assert "&lt;b&gt;rec&lt;/b&gt;" in html and "<b>rec</b>" not in html
+
+
+def test_write_report_replaces_files_and_reports_errors(paper_fit, tmp_path):
+    (tmp_path / "report.html").write_text("old")
+    write_report(paper_fit, tmp_path, dpi=30)
+    assert (tmp_path / "report.html").read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
+    assert not list(tmp_path.glob(".*.tmp"))
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(HosidInputError, match="cannot create"):
+        write_report(paper_fit, blocker / "sub", dpi=30)

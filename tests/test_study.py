@@ -1,0 +1,98 @@
+"""The efficiency study's scripts (analyses/) on tiny settings, so that they never rot."""
+
+import csv
+import importlib
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ANALYSES = Path(__file__).resolve().parents[1] / "analyses"
+SCRIPTS = ("regimes", "independent_sim", "crb", "efficiency_summary", "efficiency_study")
+
+
+@pytest.fixture(scope="module")
+def study():
+    """The study modules, imported with ``analyses/`` on the path (as the scripts run)."""
+    sys.path.insert(0, str(ANALYSES))
+    try:
+        yield {name: importlib.import_module(name) for name in SCRIPTS}
+    finally:
+        sys.path.remove(str(ANALYSES))
+        for name in SCRIPTS:
+            sys.modules.pop(name, None)
+
+
+def test_independent_simulator_is_stationary_and_seeded(study):
+    sim = study["independent_sim"].simulate
+    regime = study["regimes"].BY_NAME["paper_S100"]
+    a, va = sim(regime.params, duration=500.0, dt=0.02, rng=np.random.default_rng(3))
+    b, _ = sim(regime.params, duration=500.0, dt=0.02, rng=np.random.default_rng(3))
+    assert a.x.size == 25000 and va.size == 25000
+    np.testing.assert_array_equal(a.x, b.x)
+    d = study["regimes"].describe(regime, a.x, va)
+    # energy balance a1 E[v^2] + n1 E|v|^3 = pi S0 holds within sampling error
+    assert abs(d["balance"] - 1.0) < 0.05
+    with pytest.raises(TypeError):
+        sim(regime.params, duration=10.0, dt=0.02, rng=3)
+
+
+def test_crb_and_study_tiny(study, tmp_path, capsys):
+    crb, es = study["crb"], study["efficiency_study"]
+    rows = crb.main(["--regimes", "short", "--sim-duration", "2000", "--out", str(tmp_path)])
+    assert set(rows) == {"short"}
+    assert all(math.isfinite(rows["short"][f"sd_{p}"]) for p in ("a1", "n1", "a2", "n2", "a1eq"))
+    assert "| short |" in (tmp_path / "crb.md").read_text()
+
+    argv = ["--regimes", "short", "--records", "2", "--n-steps", "200", "--out", str(tmp_path)]
+    summary = es.main(argv)
+    path = tmp_path / "efficiency_default.csv"
+    with path.open() as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == 2 * len(es.PARAMS)
+    assert {(r["record"], r["param"]) for r in table} == {
+        (str(k), p) for k in range(2) for p in es.PARAMS
+    }
+    for r in table:
+        assert r["error"] == "", r["error"]
+        for k in ("truth", "mean", "sd", "q05", "q25", "q50", "q75", "q95", "r_hat", "ess_bulk"):
+            assert math.isfinite(float(r[k])), (r["param"], k)
+        assert float(r["q05"]) <= float(r["q50"]) <= float(r["q95"])
+    # a1eq truth: eq (65) at the simulated velocity's sd
+    a1eq = next(r for r in table if r["param"] == "a1eq")
+    assert float(a1eq["truth"]) == pytest.approx(
+        0.5 + 0.5 * math.sqrt(8 / math.pi) * float(a1eq["sigma_v"])
+    )
+
+    stats = summary["regimes"]["short"]
+    for p in ("a1", "n1", "a2", "n2", "a1eq"):
+        assert stats[p]["n"] == 2
+        assert math.isfinite(stats[p]["eff"]) and stats[p]["eff"] > 0
+        assert math.isfinite(stats[p]["bias_crb"])
+    assert 0 <= summary["pooled"]["c90"] <= 1 and summary["pooled"]["n"] == 10
+    assert math.isfinite(summary["averages"]["S0"]["rel_bias"])
+    assert "## Efficiency" in (tmp_path / "efficiency_default.md").read_text()
+    assert (tmp_path / "efficiency_default.png").stat().st_size > 0
+
+    # resumable: a second run fits nothing new; --summary alone rewrites the report
+    capsys.readouterr()
+    es.main(argv)
+    assert "0 fits to run (2 records already" in capsys.readouterr().out
+    with path.open() as fh:
+        assert len(list(csv.DictReader(fh))) == len(table)
+    (tmp_path / "efficiency_default.md").unlink()
+    es.main(["--summary", "--out", str(tmp_path)])
+    assert (tmp_path / "efficiency_default.md").is_file()
+
+
+def test_seeds_are_keyed_by_regime_and_record(study):
+    es, regimes = study["efficiency_study"], study["regimes"]
+    short, paper = regimes.BY_NAME["short"], regimes.BY_NAME["paper_S100"]
+    a = es.record_seeds(1, short, 0)[0].generate_state(2)
+    assert np.array_equal(a, es.record_seeds(1, short, 0)[0].generate_state(2))
+    assert not np.array_equal(a, es.record_seeds(1, short, 1)[0].generate_state(2))
+    assert not np.array_equal(a, es.record_seeds(1, paper, 0)[0].generate_state(2))
+    with pytest.raises(ValueError, match="unknown cost"):
+        es.run_study([short], records=1, cost="J9", out=Path("unused"), verbose=False)
