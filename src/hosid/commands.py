@@ -86,14 +86,10 @@ def _truths(args, record_path: Path) -> dict | None:
 
 
 def _out_dir(path: str) -> Path:
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise HosidInputError(f"{out}: exists and is not a directory")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise HosidInputError(f"cannot create {out}: {exc.strerror or exc}") from None
-    return out
+    from hosid.output.files import make_dir
+
+    _check_out(path)
+    return make_dir(path)
 
 
 def _print_fit(summary: dict) -> None:

@@ -1,7 +1,10 @@
 """Likelihood components: estimating equations from the record's state."""
 
 from .base import Component, Moments
+from .bispectral import J3
 from .identities import Identities
+from .noise import NoiseFloor
+from .polyspectral import J4
 from .spectral import J2
 
-__all__ = ["J2", "Component", "Identities", "Moments"]
+__all__ = ["J2", "J3", "J4", "Component", "Identities", "Moments", "NoiseFloor"]

@@ -28,7 +28,7 @@ so J4 informs the damping coefficients and :math:`S_0` (J4A) along the eq-65 lin
 Since :math:`X = \sum_i\lambda_iY_i` is affine in the free coefficients, every
 :math:`\bar q_t` is a quartic form :math:`\lambda^{\otimes4}\cdot T_t`; the sum over the
 domain is contracted once into a :math:`F^4` tensor per equation (compiled kernels of
-:mod:`hosid.components._trispectrum`, one pass over blocks and triples), so evaluating
+:mod:`hosid.components._kernels`, one pass over blocks and triples), so evaluating
 the equations never touches the blocks again.
 """
 
@@ -44,7 +44,7 @@ from ..model.model import Model
 from ..spectra.domains import trispectral_domain
 from ..spectra.windows import get_window
 from ..state import RecordState
-from ._trispectrum import contract, products
+from ._kernels import contract, products
 from .base import Excitation, Moments, feature_ffts, restoration
 
 __all__ = ["J4", "null_variance"]

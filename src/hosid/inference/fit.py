@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -25,6 +25,7 @@ import numpy as np
 import xarray as xr
 
 from .. import __version__
+from ..components.base import Component
 from ..components.spectral import default_band
 from ..errors import HosidInputError
 from ..model.model import Model
@@ -83,6 +84,7 @@ def fit(
     *,
     model: Model | str = "paper",
     cost: str | None = None,
+    components: Sequence[Component] | None = None,
     constrained: bool = True,
     priors: PriorSet | None = None,
     block_seconds: float | None = None,
@@ -110,6 +112,9 @@ def fit(
         ``"paper"`` (default), ``"linear"`` or term names.
     cost : {None, "J2", "J4A", "J4B"}
         ``None``: the default, most efficient components; otherwise the paper's.
+    components : sequence of components, optional
+        Any combination instead of ``cost``'s, e.g. ``[Identities(), J2(), J3()]``
+        (:mod:`hosid.components`).
     constrained : bool
         Keep the equivalent damping of eq (65) positive on every draw.
     priors : PriorSet, optional
@@ -152,7 +157,11 @@ def fit(
         )
     rng = _rng(seed)
     band = None if omega_max is None else (0.0, float(omega_max))
-    comps = components_for(cost, band=band, form=form, domain=domain)
+    if components is None:
+        comps = components_for(cost, band=band, form=form, domain=domain)
+    else:
+        comps = list(components)
+        cost = cost or "custom"
     est = estimate(record, model, comps, block_seconds=block_seconds)
     timings["estimate"] = time.perf_counter() - t0
     if priors is None:

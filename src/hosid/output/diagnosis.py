@@ -20,8 +20,6 @@ Figures are :class:`matplotlib.figure.Figure` objects (no pyplot state).
 
 from __future__ import annotations
 
-import base64
-import io
 import json
 import math
 from collections.abc import Sequence
@@ -32,7 +30,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..check.measures import component_labels
-from ..errors import HosidInputError
+from .files import b64, make_dir, png, render, write_atomic
 from .results import jsonable
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -158,12 +156,6 @@ def measures_figure(diag: Diagnosis, names: Sequence[str] | None = None) -> Figu
     return fig
 
 
-def _png(fig: Figure) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    return buf.getvalue()
-
-
 def _num(value: Any, digits: int = 2, none: str = "diverged") -> str:
     """A number for the page; ``None`` (an infinite gap in JSON) reads ``none``."""
     if value is None:
@@ -181,33 +173,18 @@ def _sig(value: Any) -> str:
 
 def render_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
     """The HTML page of a (JSON-ready) report and its PNG figures by name."""
-    import jinja2
-
-    env = jinja2.Environment(
-        loader=jinja2.PackageLoader("hosid", "output/templates"),
-        autoescape=True,
-        undefined=jinja2.StrictUndefined,
-        trim_blocks=True,
-        lstrip_blocks=True,
+    filters = {
+        "num": _num,
+        "sig": _sig,
+        "worst": lambda m: max(m, key=lambda k: -1 if m[k] is None else m[k]),
+    }
+    return render(
+        "diagnosis.html.j2",
+        filters,
+        rep=report,
+        images={k: b64(v) for k, v in images.items()},
+        settings_json=json.dumps(report["settings"], indent=1),
     )
-    env.filters["num"] = _num
-    env.filters["sig"] = _sig
-    env.filters["worst"] = lambda m: max(m, key=lambda k: -1 if m[k] is None else m[k])
-    b64 = {k: base64.b64encode(v).decode("ascii") for k, v in images.items()}
-    return env.get_template("diagnosis.html.j2").render(
-        rep=report, images=b64, settings_json=json.dumps(report["settings"], indent=1)
-    )
-
-
-def _write(path: Path, data: bytes | str) -> Path:
-    try:
-        if isinstance(data, bytes):
-            path.write_bytes(data)
-        else:
-            path.write_text(data, encoding="utf-8")
-    except OSError as exc:
-        raise HosidInputError(f"cannot write {path}: {exc.strerror or exc}") from None
-    return path
 
 
 def write_diagnosis(diag: Diagnosis, out_dir: str | Path) -> list[Path]:
@@ -224,20 +201,16 @@ def write_diagnosis(diag: Diagnosis, out_dir: str | Path) -> list[Path]:
     HosidInputError
         If the directory or a file cannot be written.
     """
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise HosidInputError(f"cannot create {out}: {exc.strerror or exc}") from None
+    out = make_dir(out_dir)
     rep = jsonable(diag.report())
     images = {
-        "gaps": _png(gap_figure(diag)),
-        "measure_gaps": _png(measure_gap_figure(diag)),
-        "measures": _png(measures_figure(diag)),
+        "gaps": png(gap_figure(diag)),
+        "measure_gaps": png(measure_gap_figure(diag)),
+        "measures": png(measures_figure(diag)),
     }
     paths = [
-        _write(out / "report.json", json.dumps(rep, indent=1)),
-        _write(out / "report.html", render_html(rep, images)),
+        write_atomic(out / "report.json", json.dumps(rep, indent=1)),
+        write_atomic(out / "report.html", render_html(rep, images)),
     ]
-    paths += [_write(out / f"{k}.png", v) for k, v in images.items()]
+    paths += [write_atomic(out / f"{k}.png", v) for k, v in images.items()]
     return paths

@@ -9,23 +9,18 @@ output directory, then :func:`os.replace`).
 
 from __future__ import annotations
 
-import base64
-import io
 import json
 import math
-import os
-import secrets
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-import jinja2
 import xarray as xr
 from matplotlib.figure import Figure
 
-from ..errors import HosidInputError
 from ..model.model import Model
 from . import plots
+from .files import b64, make_dir, png, render, write_atomic
 from .results import ESS_MIN, RHAT_MAX, attr, jsonable, summarize
 
 __all__ = ["CAPTIONS", "COLUMNS", "figures", "write_report"]
@@ -246,28 +241,9 @@ def _context(
         "settings": _pairs(summary.get("settings")),
         "provenance": _pairs({k: summary.get(k) for k in _PROVENANCE}),
         "figures": [
-            {"stem": k, "caption": CAPTIONS.get(k, k), "data": base64.b64encode(v).decode("ascii")}
-            for k, v in images.items()
+            {"stem": k, "caption": CAPTIONS.get(k, k), "data": b64(v)} for k, v in images.items()
         ],
     }
-
-
-def _png(fig: Figure, dpi: int) -> bytes:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi)
-    return buffer.getvalue()
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``."""
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
-    try:
-        with open(tmp, "xb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise HosidInputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def write_report(tree: xr.DataTree, out_dir: str | Path, *, dpi: int = 100) -> list[Path]:
@@ -298,26 +274,13 @@ def write_report(tree: xr.DataTree, out_dir: str | Path, *, dpi: int = 100) -> l
     HosidInputError
         If the directory or a file cannot be written.
     """
-    out_dir = Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise HosidInputError(f"cannot create {out_dir}: {exc.strerror or exc}") from None
+    out_dir = make_dir(out_dir)
     summary = _summary(tree)
-    images = {stem: _png(fig, dpi) for stem, fig in figures(tree).items()}
-    env = jinja2.Environment(
-        loader=jinja2.PackageLoader("hosid", "output/templates"),
-        autoescape=True,
-        undefined=jinja2.StrictUndefined,
-        trim_blocks=True,
-        lstrip_blocks=True,
-    )
-    html = env.get_template("report.html.j2").render(**_context(tree, summary, images))
+    images = {stem: png(fig, dpi) for stem, fig in figures(tree).items()}
+    html = render("report.html.j2", **_context(tree, summary, images))
     files = {
         "report.html": html.encode("utf-8"),
         "summary.json": json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"),
         **{f"{stem}.png": data for stem, data in images.items()},
     }
-    for name, data in files.items():
-        _write_atomic(out_dir / name, data)
-    return [out_dir / name for name in files]
+    return [write_atomic(out_dir / name, data) for name, data in files.items()]
