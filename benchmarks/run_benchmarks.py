@@ -1,7 +1,7 @@
 """Timing and memory of the engine, as ratios measured in one run.
 
 - the default fit and ``--cost J4A`` of a 100 000-sample record (2000 s at dt = 0.02),
-  with their phases (estimate, calibration, sampling);
+  with their phases (estimate, sampling);
 - time and peak memory of the record's processing (``estimate``: state, components,
   GMM) and of a whole fit at 2000 s and 20 000 s: the ratios show how they scale with the
   record length (linear: 10);
@@ -81,12 +81,12 @@ def main(quick: bool = False) -> str:
     lines += [
         "## Fits of a 100 000-sample record (2000 s at dt = 0.02 s)",
         "",
-        "| fit | wall time (s) | estimate | calibration | sampling | peak memory (MiB) |",
-        "|---|---|---|---|---|---|",
+        "| fit | wall time (s) | estimate | sampling | peak memory (MiB) |",
+        "|---|---|---|---|---|",
     ]
     for label, sec, tm, peak in rows:
         lines.append(
-            f"| {label} | {sec:.1f} | {tm['estimate']:.2f} | {tm['calibration']:.2f} | "
+            f"| {label} | {sec:.1f} | {tm['estimate']:.2f} | "
             f"{tm['sampling']:.2f} | {peak:.0f} |"
         )
 

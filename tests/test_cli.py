@@ -250,7 +250,7 @@ def test_demo_runs_the_whole_pipeline_to_the_stop_rule(tmp_path, capsys):
         (["fit", "--out", "o"], "required: record"),
         (["fit", "REC"], "required: --out"),
         (["fit", "REC", "--cost", "J3", "--out", "o"], "invalid choice"),
-        (["fit", "REC", "--calibration", "magic", "--out", "o"], "invalid choice"),
+        (["fit", "REC", "--domain", "magic", "--out", "o"], "invalid choice"),
         (["fit", "missing.csv", "--out", "o"], "no such file"),
         (["fit", "SHORT", "--out", "o"], "periods"),
         (["fit", "REC", "--walkers", "11", "--out", "o"], "even and at least 12"),
@@ -317,7 +317,7 @@ def test_version_and_help(capsys):
         cli.main(["--version"])
     assert exc.value.code == 0
     assert capsys.readouterr().out.strip() == f"hosid {__version__}"
-    for command, option in (("estimate", "--omega-max"), ("fit", "--calibration")):
+    for command, option in (("estimate", "--omega-max"), ("fit", "--unconstrained")):
         with pytest.raises(SystemExit) as exc:
             cli.main([command, "--help"])
         assert exc.value.code == 0

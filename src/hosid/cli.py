@@ -164,12 +164,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _analysis_options(fit)
     fit.add_argument(
-        "--calibration",
-        choices=("auto", "gmm", "bootstrap"),
-        default="auto",
-        help="how the quasi-likelihood is calibrated; default auto",
-    )
-    fit.add_argument(
         "--unconstrained",
         action="store_true",
         help="drop the eq-65 constraint a1eq > 0 (shows the twin modes)",

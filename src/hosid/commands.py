@@ -230,7 +230,6 @@ def cmd_fit(args) -> int:
         omega_max=args.omega_max,
         form=args.form,
         domain=args.domain,
-        calibration=args.calibration,
     )
 
 

@@ -36,7 +36,7 @@ import xarray as xr
 
 from ..errors import HosidInputError
 from ..inference.calibrate import calibrate
-from ..inference.estimate import Estimate, components_for
+from ..inference.estimate import Estimate
 from ..model.model import Model
 from ..model.priors import LogUniform
 
@@ -118,7 +118,7 @@ def screen_sample(
     """
     model = est.model
     names = model.param_names
-    cal = calibrate(est, components_for(), method="gmm", rng=rng)
+    cal = calibrate(est)
     priors = model.default_priors(est.scales(), constrained=True)
     logs = np.array([isinstance(priors[n], LogUniform) for n in names])
     lo = np.array([priors[n].lower for n in names], dtype=float)

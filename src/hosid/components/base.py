@@ -38,6 +38,7 @@ __all__ = [
     "Moments",
     "feature_ffts",
     "restoration",
+    "u_pseudovalues",
 ]
 
 
@@ -54,7 +55,8 @@ class Moments:
     mean : callable
         ``theta (..., p) -> (..., k)``: the block-mean estimating equations.
     influence : ndarray, shape (B, k)
-        Per-block influence at the pilot, centred.
+        Per-block influence at the pilot, centred: the block values of a block mean, the
+        jackknife pseudo-values of a U-statistic (:func:`u_pseudovalues`).
     info : dict
         What the component used (band, domain, ...), for the report.
     """
@@ -142,6 +144,40 @@ class Excitation:
             return float(velocity_deficit(S0, dt))
         wc = float(np.asarray(theta)[self.i_wc])
         return float(velocity_deficit(S0, dt, lambda w: ColouredExcitation.shape(w, wc)))
+
+
+def u_pseudovalues(d: np.ndarray, e: np.ndarray) -> np.ndarray:
+    r"""Delete-one-block jackknife pseudo-values of the U-statistic of a spectral component.
+
+    With per-block weights :math:`d_{rtj}` and residuals :math:`e_{rt}` (``(B, n, J)``
+    and ``(B, n)``, real or complex), the component's equations are the U-statistic
+
+    .. math:: U_j = \frac{1}{B(B-1)}\sum_{r\ne r'}\mathrm{Re}\sum_t
+        d^*_{r'tj}\,e_{rt},
+
+    and its pseudo-values :math:`\psi_b = BU - (B-1)U_{(-b)}` (``(B, J)``) average to
+    :math:`U`; their covariance over blocks, divided by :math:`B`, is the jackknife
+    variance of :math:`U`.  Unlike the Hoeffding projection
+    :math:`\mathrm{Re}\sum_t\bar d^{*(-r)}_{tj}e_{rt}` it keeps the degenerate part of
+    the statistic (weights and residuals of different blocks both random, and correlated
+    within a block), which is not small when each block's weights are noisy, as for the
+    trispectrum off the planes :math:`\omega_i + \omega_j = 0` (Efron & Stein 1981: the
+    jackknife variance of a U-statistic errs, if at all, on the large side).
+    """
+    B = d.shape[0]
+    dc = np.conj(d)
+    D, E = dc.sum(axis=0), e.sum(axis=0)  # (n, J), (n,)
+    cross = np.einsum("btj,bt->bj", dc, e)  # a block's own pairs
+    full = np.einsum("tj,t->j", D, E) - cross.sum(axis=0)  # all pairs r != r'
+    loo = (
+        full[None]
+        - np.einsum("tj,bt->bj", D, e)
+        - np.einsum("btj,t->bj", dc, E)
+        + 2.0 * cross
+    )  # the pairs without block b
+    U = full.real / (B * (B - 1))
+    U_loo = loo.real / ((B - 1) * (B - 2))
+    return B * U[None] - (B - 1) * U_loo
 
 
 def restoration(state: RecordState, model: Model, pilot: np.ndarray) -> tuple[float, float]:

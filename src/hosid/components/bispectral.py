@@ -34,7 +34,7 @@ from ..spectra.domains import bispectral_domain
 from ..spectra.windows import get_window
 from ..state import RecordState
 from ._kernels import contract3, products3
-from .base import Moments, feature_ffts, restoration
+from .base import Moments, feature_ffts, restoration, u_pseudovalues
 
 __all__ = ["J3", "bispectral_null_variance"]
 
@@ -114,7 +114,7 @@ class J3:
             l3 = lam[..., :, None, None] * lam[..., None, :, None] * lam[..., None, None, :]
             return np.tensordot(l3, K, axes=([-3, -2, -1], [1, 2, 3]))
 
-        u = np.real(np.einsum("btj,bt->bj", wts, q))
+        u = u_pseudovalues(d, q)
         return Moments(
             component=self.name,
             labels=tuple(f"J3 d/d{model.param_names[i]}" for i in range(nd)),

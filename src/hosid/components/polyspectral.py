@@ -21,11 +21,13 @@ gradient with frozen weights :math:`d_{tj} = w_t\,\partial(q_t - G_t)/\partial\t
 .. math:: m_j(\theta) = \mathrm{Re}\sum_t d^*_{tj}\,\big(\bar q_t(\theta) - G_t(\theta)\big),
 
 with block-diagonal pairs removed (a U-statistic; same-block weights and residuals
-correlate by about one standard error otherwise).  Like the paper's protocol, J4 is *cut*
-from the stiffness: the restoring coefficients are held at the pilot inside the force,
-so J4 informs the damping coefficients and :math:`S_0` (J4A) along the eq-65 line.
+correlate by about one standard error otherwise; the covariance comes from the
+jackknife pseudo-values, :func:`hosid.components.base.u_pseudovalues`).  As in the paper's
+protocol, J4 gives equations only along the damping coefficients and :math:`S_0` (J4A):
+the stiffness comes from the moments and J2.  The force is evaluated at the whole
+parameter vector, so the stiffness's uncertainty reaches the damping.
 
-Since :math:`X = \sum_i\lambda_iY_i` is affine in the free coefficients, every
+Since :math:`X = \sum_i\lambda_iY_i` is affine in the coefficients, every
 :math:`\bar q_t` is a quartic form :math:`\lambda^{\otimes4}\cdot T_t`; the sum over the
 domain is contracted once into a :math:`F^4` tensor per equation (compiled kernels of
 :mod:`hosid.components._kernels`, one pass over blocks and triples), so evaluating
@@ -45,7 +47,7 @@ from ..spectra.domains import trispectral_domain
 from ..spectra.windows import get_window
 from ..state import RecordState
 from ._kernels import contract, products
-from .base import Excitation, Moments, feature_ffts, restoration
+from .base import Excitation, Moments, feature_ffts, restoration, u_pseudovalues
 
 __all__ = ["J4", "null_variance"]
 
@@ -115,18 +117,15 @@ class J4:
         dom = trispectral_domain(k_max, self.domain)
         th0 = np.asarray(pilot, dtype=float)
         nd = model.n_drift
-        free = [i for i, t in enumerate(model.drift_terms) if t.variable == "v"]
-        fixed = [i for i in range(nd) if i not in free]
+        damp = [i for i, t in enumerate(model.drift_terms) if t.variable == "v"]
         s2, _ = restoration(state, model, th0)
-        Yf = feature_ffts(state, model, s2, np.arange(k_max + 1))  # (1 + nd, B, K)
-        base = Yf[0] + np.tensordot(th0[fixed], Yf[1:][fixed], 1)  # cut: stiffness held
-        Y = np.concatenate([base[None], Yf[1:][free]])  # (F, B, K), F = 1 + free
+        Y = feature_ffts(state, model, s2, np.arange(k_max + 1))  # (F, B, K), F = 1 + nd
         Ys = np.concatenate([np.conj(Y[:, :, :0:-1]), Y], axis=2)  # signed bins -K..K
         idx = dom + k_max
         B = Y.shape[1]
         T = L.T
         c8 = 8 * math.pi**3 * T
-        lam0 = np.concatenate([[1.0], th0[free]])
+        lam0 = np.concatenate([[1.0], th0[:nd]])
         Ys = np.ascontiguousarray(Ys)
         idx = np.ascontiguousarray(idx, dtype=np.int64)
         q, dq = products(Ys, idx, lam0, c8)  # (B, n_t), (B, n_t, F - 1)
@@ -150,21 +149,21 @@ class J4:
             th = np.asarray(theta, dtype=float)
             if self.kind == "A":
                 return exc.S0(th)[..., None] * exc.shape(omega, th)
-            lam = np.concatenate([np.ones((*th.shape[:-1], 1)), th[..., free]], axis=-1)
+            lam = np.concatenate([np.ones((*th.shape[:-1], 1)), th[..., :nd]], axis=-1)
             return np.einsum("...i,kij,...j->...k", lam, R, lam) / k2
 
         def gauss(s):
             return sum(s[..., absk[:, a]] * s[..., absk[:, b]] * delta[:, c] for a, b, c in pairs)
 
         # directions and frozen per-block weights d_tbj
-        dirs = list(free) + ([exc.i_S0] if self.kind == "A" else [])
+        dirs = list(damp) + ([exc.i_S0] if self.kind == "A" else [])
         if self.kind == "A" and exc.i_wc is not None:
             dirs.append(exc.i_wc)
         G0 = gauss(level(th0))
         d = np.empty((B, dom.shape[0], len(dirs)), dtype=complex)
         for a, i in enumerate(dirs):
             if i < nd:
-                dq_i = dq[:, :, free.index(i)]
+                dq_i = dq[:, :, i]
                 dG = 0.0
                 if self.kind == "B":
                     h = 1e-6 * max(abs(th0[i]), 1e-3)
@@ -187,10 +186,10 @@ class J4:
         wts = U * np.conj(dbar[None] - d / B)  # (B, n_t, J)
         K_all = contract(Ys, idx, np.ascontiguousarray(wts), c8)
         e = wts.mean(axis=0)  # weights of the Gaussian term
-        # the U-statistic's projection on the blocks: each block's residual weighted by the
-        # other blocks' mean weights (its other half, conj(d_b) times the population
-        # residual, vanishes at the solution; the sample residual would only add noise)
-        u = np.real(np.einsum("btj,bt->bj", wts, q - G0))
+        # jackknife pseudo-values: the projection alone (each block's residual times the
+        # other blocks' mean weights) drops the degenerate part, which off the planes
+        # w_i + w_j = 0 is not small (E[-2 l] of the 3 J4A equations at the truth: 4.8)
+        u = u_pseudovalues(d, q - G0)
         if self.kind == "B":  # delta method: G depends on the blocks through Va
             Xb = np.tensordot(lam0, Y, 1)
             sb = np.abs(Xb) ** 2 / (2 * math.pi * T * k2)  # per-block level (B, K + 1)
@@ -208,7 +207,7 @@ class J4:
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
-            lam = np.concatenate([np.ones((*th.shape[:-1], 1)), th[..., free]], axis=-1)
+            lam = np.concatenate([np.ones((*th.shape[:-1], 1)), th[..., :nd]], axis=-1)
             l2 = lam[..., :, None] * lam[..., None, :]
             l4 = l2[..., :, :, None, None] * l2[..., None, None, :, :]
             main = np.tensordot(l4, K_all, axes=([-4, -3, -2, -1], [1, 2, 3, 4]))
@@ -226,7 +225,7 @@ class J4:
                 "band_rad_s": float(k_max * L.d_omega),
                 "domain": self.domain,
                 "form": self.form,
-                "cut": "stiffness held",
+                "directions": "damping and S0 (J4A) / damping (J4B)",
             },
         )
 

@@ -18,11 +18,10 @@ has expectation 0 under the model (eq 21: :math:`\hat V^a = k_2S_0` for white no
 
 Weights and residuals from the same blocks are correlated, which would bias
 :math:`m_j` at the truth by about one standard error; the block-diagonal pairs are
-therefore removed (a U-statistic over block pairs :math:`r \ne r'`), and the influence
-is the statistic's Hoeffding projection at the solution,
-:math:`u_{rj} = \frac1K\sum_k \bar w^{(-r)}_{kj}h_{rk}` (weights from the other
-blocks).  ``form="printed"`` weights the ordinates as eq (50) does,
-:math:`(\hat V^a - k_2S_0)^2`, i.e. by :math:`(S_0L)^2`.
+therefore removed (a U-statistic over block pairs :math:`r \ne r'`), and its
+covariance comes from the delete-one-block jackknife
+(:func:`hosid.components.base.u_pseudovalues`).  ``form="printed"`` weights the
+ordinates as eq (50) does, :math:`(\hat V^a - k_2S_0)^2`, i.e. by :math:`(S_0L)^2`.
 
 The default band runs from bin 2 (the Hann window leaks a mean force into bins 0 and 1)
 to :math:`\min(6\,\omega_n, \omega_N/2)`.
@@ -37,7 +36,7 @@ import numpy as np
 
 from ..model.model import Model
 from ..state import RecordState
-from .base import Excitation, Moments, feature_ffts, restoration
+from .base import Excitation, Moments, feature_ffts, restoration, u_pseudovalues
 
 __all__ = ["J2", "default_band"]
 
@@ -59,14 +58,11 @@ class J2:
     r"""The second-order spectral component (module docstring).
 
     ``band``: ``(omega_lo, omega_hi)`` in rad/s (default :func:`default_band`);
-    ``form``: ``"scaled"`` or ``"printed"``; ``cut``: hold the restoring coefficients at
-    the pilot inside the force, so that J2 informs only the damping, :math:`S_0` and
-    :math:`\omega_c` (the paper's protocol takes the stiffness from the moments).
+    ``form``: ``"scaled"`` or ``"printed"``.
     """
 
     band: tuple[float, float] | None = None
     form: str = "scaled"
-    cut: bool = False
     name: str = "J2"
 
     def prepare(self, state: RecordState, model: Model, pilot: np.ndarray) -> Moments:
@@ -96,8 +92,7 @@ class J2:
         level0 = exc.S0(th0) * exc.shape(omega, th0)  # (K,)
         P0 = np.einsum("bkij,i,j->bk", R, lam0, lam0) / level0  # h + 1
         # directions: drift coefficients, S0, wc
-        held = [i for i, t in enumerate(model.drift_terms) if self.cut and t.variable != "v"]
-        dirs = [i for i in range(nd) if i not in held] + [exc.i_S0]
+        dirs = [*range(nd), exc.i_S0]
         dirs += [exc.i_wc] if exc.i_wc is not None else []
         names = model.param_names
         w = np.empty((B, K, len(dirs)))
@@ -124,9 +119,6 @@ class J2:
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
-            if held:  # the cut: restoring coefficients held at the pilot
-                th = th.copy()
-                th[..., held] = th0[held]
             lam = np.concatenate([np.ones((*th.shape[:-1], 1)), th[..., :nd]], axis=-1)
             S0 = exc.S0(th)[..., None]
             if white:
@@ -138,8 +130,7 @@ class J2:
 
         # the statistic's projection on the blocks (its other half, w_b times the
         # population residual, vanishes at the solution; the sample residual is noise)
-        w_loo = (B * wbar[None] - w) / (B - 1)  # the other blocks' mean weights
-        u = np.einsum("bkj,bk->bj", w_loo, P0 - 1.0) / K
+        u = u_pseudovalues(w / K, P0 - 1.0)
         return Moments(
             component=self.name,
             labels=tuple(f"J2 d/d{names[i]}" for i in dirs),

@@ -12,16 +12,16 @@ r"""Record -> state -> components -> calibrated quasi-likelihood and its mode.
 :mod:`hosid.inference.calibrate` and emcee (:mod:`hosid.inference.sampler`), and
 returns an arviz ``DataTree`` (:mod:`hosid.output.results`).
 
-Component sets (``cost``; "cut": the spectral components hold the restoring coefficients
-at the pilot, which the restoring identities, the paper's moment method, inform):
+Component sets (``cost``; the restoring identities are the paper's moment method, J4
+gives equations along the damping and :math:`S_0` only):
 
 =========  ===================================================  ======================
 ``cost``   components                                           what it is
 =========  ===================================================  ======================
 ``None``   identities (all drift terms) + J2                    the default: efficient
-``"J2"``   identities (restoring terms) + J2 (cut)              paper's second order
-``"J4A"``  identities (restoring terms) + J2 + J4A (cut)        paper's protocol, eq 59
-``"J4B"``  identities (restoring terms) + J2 + J4B (cut)        eq 62-63
+``"J2"``   identities (restoring terms) + J2                    paper's second order
+``"J4A"``  identities (restoring terms) + J2 + J4A              paper's protocol, eq 59
+``"J4B"``  identities (restoring terms) + J2 + J4B              eq 62-63
 =========  ===================================================  ======================
 """
 
@@ -79,7 +79,7 @@ def components_for(
         return [Identities(), J2(band=band, form=form)]
     if cost not in COSTS:
         raise HosidInputError(f"unknown cost {cost!r}: choose from {', '.join(COSTS)}")
-    comps: list[Component] = [Identities("restoring"), J2(band=band, form=form, cut=True)]
+    comps: list[Component] = [Identities("restoring"), J2(band=band, form=form)]
     if cost in ("J4A", "J4B"):
         from ..components.polyspectral import J4
 

@@ -91,7 +91,6 @@ def fit(
     omega_max: float | None = None,
     form: str = "scaled",
     domain: str = "principal",
-    calibration: str = "auto",
     n_walkers: int = 32,
     n_steps: int | None = None,
     max_steps: int = 20000,
@@ -125,12 +124,10 @@ def fit(
         Weighting of the spectral components.
     domain : {"principal", "reduced", "full"}
         Trispectral domain of J4.
-    calibration : {"auto", "gmm", "bootstrap"}
-        See :mod:`hosid.inference.calibrate`.
     n_walkers, n_steps, max_steps : int
         Ensemble size; a fixed number of steps, or the stop rule's limit.
     seed : int or Generator, optional
-        The only source of randomness (walkers, moves, calibration).
+        The only source of randomness (walkers, moves, prior draws).
     progress : bool
         One labelled progress bar.
     backend : path, optional
@@ -168,8 +165,7 @@ def fit(
         priors = model.default_priors(est.scales(), constrained=constrained)
     elif priors.names != model.param_names:
         raise HosidInputError(f"priors must be for {', '.join(model.param_names)} in order")
-    cal = calibrate(est, comps, method=calibration, cost=cost, rng=rng, progress=progress)
-    timings["calibration"] = time.perf_counter() - t0 - sum(timings.values())
+    cal = calibrate(est)
 
     names = model.param_names
     comp_names = list(est.ql.slices)

@@ -1,7 +1,8 @@
 r"""The calibrated quasi-likelihood of stacked estimating equations (efficient GMM).
 
 The components' equations are stacked, :math:`\bar m(\theta) \in \mathbb R^k`, and their
-per-block influences :math:`u_b` give the covariance of the block mean,
+per-block influences :math:`u_b` (delete-one-block jackknife pseudo-values, which
+equal the block values for plain block means) give the covariance of the block mean,
 :math:`\hat\Sigma/B` with :math:`\hat\Sigma = \frac{1}{B-1}\sum_b u_bu_b^{\mathsf T}`.
 The quasi-log-likelihood is
 
@@ -126,7 +127,7 @@ def quasi_likelihood(moments: Sequence[Moments], *, n_params: int) -> QuasiLikel
         float(np.corrcoef(U[:-1, i], U[1:, i])[0, 1]) if B > 3 else float("nan") for i in range(k)
     ]
     info = {
-        "weighting": "efficient GMM (inverse influence covariance, Godambe curvature)",
+        "weighting": "efficient GMM (inverse jackknife covariance, Godambe curvature)",
         "blocks": B,
         "equations": k,
         "parameters": n_params,

@@ -145,22 +145,14 @@ def _summary(tree: xr.DataTree) -> dict[str, Any]:
 
 
 def _calibration(summary: Mapping[str, Any]) -> dict[str, Any]:
-    """Method, dispersion, Hansen's test, the note and bootstrap checks for the banner."""
+    """Method, dispersion, Hansen's test and the note for the banner."""
     cal = dict(summary.get("calibration") or {})
     hansen = cal.pop("hansen", None)
-    bias, ratio = cal.pop("bias", None) or {}, cal.pop("sd_ratio", None) or {}
-    rows = []
-    for name in dict.fromkeys([*bias, *ratio]):
-        sd = summary["parameters"].get(name, {}).get("sd")
-        b = bias.get(name)
-        rel = b / sd if b is not None and sd else None
-        rows.append((name, _num(b), _num(rel, 3), _num(ratio.get(name), 3)))
     return {
         "method": cal.pop("method", "?"),
         "dispersion": _num(cal.pop("dispersion", None)),
         "note": cal.pop("note", None),
         "hansen": hansen and {k: _num(hansen.get(k)) for k in ("J", "df", "p_value")},
-        "bootstrap": rows,
         "details": _pairs(cal),
     }
 
