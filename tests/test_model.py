@@ -370,3 +370,19 @@ def test_priorset_checks_shapes_and_impossible_constraints():
     np.testing.assert_allclose(
         ok.ln_prob(np.array([0.5, 1.0])), -0.5 - 0.5 * math.log(2 * math.pi), rtol=1e-14
     )
+
+
+def test_priorset_box_path_equals_the_sum_of_its_priors():
+    # uniform and log-uniform priors take one vectorized pass; it must equal the sum of
+    # the priors' own log densities, -inf outside any support
+    priors = {"a": Uniform(-1.0, 2.0), "s": LogUniform(0.5, 50.0), "b": Uniform(0.0, 4.0)}
+    box = PriorSet(priors)
+    assert box._box is not None
+    th = np.random.default_rng(0).uniform([-1.5, 0.1, -0.5], [2.5, 60.0, 4.5], size=(500, 3))
+    expect = sum(p.ln_prob(th[:, i]) for i, p in enumerate(priors.values()))
+    got = box.ln_prob(th)
+    np.testing.assert_array_equal(np.isfinite(got), np.isfinite(expect))
+    ok = np.isfinite(expect)
+    assert 50 < ok.sum() < 500
+    np.testing.assert_allclose(got[ok], expect[ok], rtol=1e-13)
+    assert PriorSet({**priors, "n": Normal(0.0, 1.0)})._box is None  # the general path

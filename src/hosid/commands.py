@@ -195,13 +195,13 @@ def _check_out(path: str) -> None:
 def _fit_and_report(record, out: Path, *, truths=None, **options) -> int:
     from hosid.inference import fit
     from hosid.output.report import write_report
-    from hosid.output.results import save, summarize
+    from hosid.output.results import save
 
     tree = fit(record, truths=truths, **options)
     out = _out_dir(str(out))
     save(tree, out / "posterior.nc")
     paths = write_report(tree, out)
-    _print_fit(summarize(tree, warn=False))
+    _print_fit(json.loads((out / "summary.json").read_text(encoding="utf-8")))  # summarized once
     print("wrote " + ", ".join(str(p) for p in [out / "posterior.nc", *paths]))
     return 0
 

@@ -148,6 +148,19 @@ class PriorSet(Mapping):
     ):
         self._priors = dict(priors)
         self.constraints = dict(constraints or {})
+        # uniform and log-uniform priors (every default) evaluated in one pass per call
+        ps = list(self._priors.values())
+        self._box = None
+        if ps and all(type(p) in (Uniform, LogUniform) for p in ps):
+            lo = np.array([p.lower for p in ps], dtype=float)
+            hi = np.array([p.upper for p in ps], dtype=float)
+            log = np.array([type(p) is LogUniform for p in ps])
+            const = -sum(
+                math.log(math.log(p.upper / p.lower)) if type(p) is LogUniform
+                else math.log(p.upper - p.lower)
+                for p in ps
+            )  # fmt: skip
+            self._box = (lo, hi, log, const)
 
     def __getitem__(self, key: str) -> Prior:
         return self._priors[key]
@@ -176,6 +189,12 @@ class PriorSet(Mapping):
         th = np.asarray(theta, dtype=float)
         if th.shape[-1] != len(self):
             raise ValueError(f"theta has {th.shape[-1]} parameters, expected {len(self)}")
+        if self._box is not None:
+            lo, hi, log, const = self._box
+            inside = np.all((th >= lo) & (th <= hi), axis=-1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                lp = const - np.sum(np.log(th[..., log]), axis=-1)
+            return np.where(inside & self.admissible(th), lp, -np.inf)
         lp = np.zeros(th.shape[:-1])
         for i, p in enumerate(self._priors.values()):
             lp = lp + p.ln_prob(th[..., i])
