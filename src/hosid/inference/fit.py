@@ -211,7 +211,7 @@ def fit(
             "domain": domain,
         }
         be = _backend(backend, n_walkers, len(names), signature)
-    snooker = cost is not None or not constrained  # the paper's valley and twin modes
+    kde = cost is not None or not constrained  # the paper's valley and twin modes
     chain = S.run(
         log_prob,
         modes=modes,
@@ -223,7 +223,7 @@ def fit(
         n_steps=n_steps,
         max_steps=max_steps,
         mirror=damping if not constrained else (),
-        snooker=snooker,
+        kde=kde,
         backend=be,
         progress="sampling" if progress else False,
     )
@@ -277,9 +277,7 @@ def fit(
             "burn_in": chain.burn,
             "autocorr_time": dict(zip(names, chain.autocorr.tolist(), strict=True)),
             "acceptance": chain.acceptance,
-            "moves": (
-                "DE 0.7, DE(gamma=1) 0.1, snooker 0.2" if snooker else "DE 0.9, DE(gamma=1) 0.1"
-            )
+            "moves": ("DE 0.7, DE(gamma=1) 0.1, KDE 0.2" if kde else "DE 0.9, DE(gamma=1) 0.1")
             + ("" if constrained else "; x0.9 and mirror 0.1"),
         },
         "truths": dict(truths) if truths else None,
