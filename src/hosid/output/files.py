@@ -1,14 +1,29 @@
-"""What every report writer shares: PNG bytes of a figure, HTML from a jinja2 template,
-and files written atomically (a temporary name in the directory, then :func:`os.replace`).
+"""What every writer of results shares: PNG bytes of a figure, HTML from a jinja2
+template, files written atomically (a temporary name in the directory, then
+:func:`os.replace`) and output folders that are never half-written or mixed.
+
+:func:`output_dir` is how a command writes its ``--out`` folder: it creates the folder
+(call it once the input is validated), holds an exclusive lock on it (a second command on
+the same folder stops at once with :class:`~hosid.errors.HosidInputError`), hands out a
+staging directory inside it, and only when the work succeeds moves the staged files in
+and removes the files that the folder's previous command wrote and this one did not
+(listed in ``.hosid-manifest.json``).  On an error or Ctrl-C the staging directory is
+removed, the previous files stay as they were, and a folder the command created is
+removed again.
 """
 
 from __future__ import annotations
 
 import base64
+import fcntl
 import io
+import json
 import os
 import secrets
-from collections.abc import Callable, Mapping
+import shutil
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from datetime import UTC, datetime
 from pathlib import Path
 
 import jinja2
@@ -16,7 +31,21 @@ from matplotlib.figure import Figure
 
 from ..errors import HosidInputError
 
-__all__ = ["b64", "make_dir", "png", "render", "write_atomic"]
+__all__ = [
+    "LOCK_NAME",
+    "MANIFEST_NAME",
+    "b64",
+    "make_dir",
+    "output_dir",
+    "png",
+    "render",
+    "write_atomic",
+]
+
+#: The lock file inside an output folder (held with ``flock`` while a command writes).
+LOCK_NAME = ".hosid.lock"
+#: The list of files the folder's last command wrote.
+MANIFEST_NAME = ".hosid-manifest.json"
 
 
 def png(fig: Figure, dpi: int = 100) -> bytes:
@@ -67,3 +96,82 @@ def write_atomic(path: Path, data: bytes | str) -> Path:
         tmp.unlink(missing_ok=True)
         raise HosidInputError(f"cannot write {path}: {exc.strerror or exc}") from None
     return path
+
+
+def _lock(out: Path, command: str):
+    """Hold an exclusive, non-blocking ``flock`` on ``out/.hosid.lock`` or raise."""
+    path = out / LOCK_NAME
+    try:
+        fh = open(path, "a+")  # held until the command ends
+    except OSError as exc:
+        raise HosidInputError(f"cannot write into {out}: {exc.strerror or exc}") from None
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.seek(0)
+        holder = fh.read().strip() or "another hosid command"
+        fh.close()
+        raise HosidInputError(
+            f"{out} is in use by {holder}; wait for it to finish or choose another --out"
+        ) from None
+    fh.seek(0)
+    fh.truncate()
+    fh.write(f"'{command}' (pid {os.getpid()})")
+    fh.flush()
+    return fh
+
+
+def _commit(stage: Path, out: Path, command: str) -> None:
+    """Move the staged files into ``out``; drop the previous command's other files."""
+    manifest = out / MANIFEST_NAME
+    try:
+        previous = set(json.loads(manifest.read_text())["files"])
+    except (OSError, ValueError, KeyError, TypeError):
+        previous = set()
+    names = sorted(p.name for p in stage.iterdir())
+    for name in names:
+        os.replace(stage / name, out / name)
+    for name in previous - set(names):
+        if "/" not in name and not name.startswith("."):
+            (out / name).unlink(missing_ok=True)
+    record = {"command": command, "written_at": datetime.now(UTC).isoformat(), "files": names}
+    write_atomic(manifest, json.dumps(record, indent=1) + "\n")
+
+
+@contextmanager
+def output_dir(path: str | Path, *, command: str) -> Iterator[Path]:
+    """Create, lock and stage the output folder ``path`` (module docstring).
+
+    Yields the staging directory: write every result file into it (with any writer);
+    the files replace the folder's contents only when the ``with`` block ends without
+    an exception.
+
+    Raises
+    ------
+    HosidInputError
+        If ``path`` exists and is not a directory, cannot be created or written, or is
+        locked by another command.
+    """
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise HosidInputError(f"{out}: exists and is not a directory")
+    created = not out.exists()
+    make_dir(out)
+    try:
+        fh = _lock(out, command)
+    except HosidInputError:
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    stage = out / f".staging-{secrets.token_hex(4)}"
+    ok = False
+    try:
+        stage.mkdir()
+        yield stage
+        _commit(stage, out, command)
+        ok = True
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+        if created and not ok:
+            shutil.rmtree(out, ignore_errors=True)
+        fh.close()
