@@ -139,12 +139,11 @@ def _commit(stage: Path, out: Path, command: str) -> None:
 
 
 @contextmanager
-def output_dir(path: str | Path, *, command: str) -> Iterator[Path]:
-    """Create, lock and stage the output folder ``path`` (module docstring).
-
-    Yields the staging directory: write every result file into it (with any writer);
-    the files replace the folder's contents only when the ``with`` block ends without
-    an exception.
+def locked_dir(path: str | Path, *, command: str) -> Iterator[Path]:
+    """Create ``path`` if needed and hold its lock while the block runs (a second command
+    on the folder stops at once); a folder created here is removed again when the block
+    raises.  :func:`output_dir` builds on it; commands that write many results one by one
+    (``hosid batch``) use it directly with :func:`write_atomic`.
 
     Raises
     ------
@@ -163,15 +162,35 @@ def output_dir(path: str | Path, *, command: str) -> Iterator[Path]:
         if created:
             shutil.rmtree(out, ignore_errors=True)
         raise
-    stage = out / f".staging-{secrets.token_hex(4)}"
     ok = False
     try:
-        stage.mkdir()
-        yield stage
-        _commit(stage, out, command)
+        yield out
         ok = True
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
         if created and not ok:
             shutil.rmtree(out, ignore_errors=True)
         fh.close()
+
+
+@contextmanager
+def output_dir(path: str | Path, *, command: str) -> Iterator[Path]:
+    """Create, lock and stage the output folder ``path`` (module docstring).
+
+    Yields the staging directory: write every result file into it (with any writer);
+    the files replace the folder's contents only when the ``with`` block ends without
+    an exception.
+
+    Raises
+    ------
+    HosidInputError
+        If ``path`` exists and is not a directory, cannot be created or written, or is
+        locked by another command.
+    """
+    with locked_dir(path, command=command) as out:
+        stage = out / f".staging-{secrets.token_hex(4)}"
+        try:
+            stage.mkdir()
+            yield stage
+            _commit(stage, out, command)
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
