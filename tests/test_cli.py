@@ -85,17 +85,21 @@ def test_estimate_prints_a_table_and_writes_json(workdir, capsys):
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("rec: Model(linear_damping + quadratic_damping")
     assert "default components; Hansen J = " in lines[0]
-    assert lines[1].split() == ["parameter", "estimate", "sd"]
+    assert lines[1].split() == ["parameter", "estimate", "sd", "5%", "95%"]
     assert [ln.split()[0] for ln in lines[3:]] == ["a1", "n1", "a2", "n2", "S0", "a1eq"]
     data = json.loads(out.read_text())
-    assert data["record"] == "rec" and data["cost"] is None
+    assert data["record"] == "rec" and data["cost"] is None and data["unit"] == "m"
+    for k, (lo, hi) in data["interval90"].items():  # estimate +- 1.645 sd
+        assert lo == pytest.approx(data["estimates"][k] - 1.6448536 * data["sd"][k])
+        assert hi == pytest.approx(data["estimates"][k] + 1.6448536 * data["sd"][k])
+    assert [c["name"] for c in data["checks"]][-2:] == ["oscillator", "calibration"]
     assert data["model"][:4] == [
         "linear_damping",
         "quadratic_damping",
         "linear_stiffness",
         "cubic_stiffness",
     ]
-    assert set(data["estimates"]) == set(data["sd"]) == set(PAPER_PARAMS)
+    assert set(data["estimates"]) == set(data["sd"]) == {*PAPER_PARAMS, "a1eq"}
     assert data["hansen"]["df"] == 4
     assert data["state"]["blocks"] == 24
     # the 500 s record recovers the truth within 3 sd (measured |z| < 1.3)
@@ -204,6 +208,57 @@ def test_demo_runs_the_whole_pipeline_to_the_stop_rule(tmp_path, capsys):
     assert captured.err == ""  # no convergence warning
 
 
+# ------------------------------------------------------------------ records hosid cannot describe
+def _kinds(n: int = 30_000, dt: float = 0.02) -> dict[str, Record]:
+    rng = np.random.default_rng(5)
+    t = dt * np.arange(n)
+    return {
+        "constant": Record(np.full(n, 0.7), dt),
+        "white": Record(rng.standard_normal(n), dt),
+        "tone": Record(np.sin(5.0 * t), dt),
+        "walk": Record(np.cumsum(rng.standard_normal(n)), dt),
+    }
+
+
+@pytest.mark.parametrize(
+    ("kind", "why"),
+    [
+        ("constant", "the record is constant"),
+        ("white", "does not fall off above a resonance"),
+        ("tone", "tones, not a random response"),
+        ("walk", "wanders like a random walk"),
+    ],
+)
+@pytest.mark.parametrize("command", ["estimate", "fit", "diagnose"])
+def test_a_record_that_is_no_oscillator_exits_3_and_writes_nothing(
+    tmp_path, capsys, kind, why, command
+):
+    rec = write_record(_kinds()[kind], tmp_path / f"{kind}.csv")
+    argv = [command, str(rec)]
+    if command != "estimate":
+        argv += ["--out", str(tmp_path / "out"), "--no-progress"]
+    assert cli.main(argv) == 3
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("hosid: rejected: oscillator: "), err
+    assert why in err[0] and "--force" in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_force_fits_a_rejected_record_and_says_so_in_red(tmp_path, capsys):
+    rec = write_record(_kinds()["white"], tmp_path / "white.csv")
+    out = tmp_path / "out"
+    argv = ["fit", str(rec), "--force", "--steps", "100", "--no-progress", "--out", str(out)]
+    assert cli.main(argv) == 0
+    err = capsys.readouterr().err
+    assert "hosid: fail: oscillator:" in err and "Traceback" not in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["forced"] is True and summary["verdict"] == "fail"
+    failed = [c for c in summary["checks"] if c["status"] == "fail"]
+    assert {c["name"] for c in failed} == {"sampling", "oscillator"}
+    html = (out / "report.html").read_text()
+    assert 'id="forced"' in html and '<tr class="fail"><td>oscillator</td>' in html
+
+
 # ------------------------------------------------------------------ bad input
 @pytest.mark.parametrize(
     ("argv", "match"),
@@ -245,7 +300,6 @@ def test_demo_runs_the_whole_pipeline_to_the_stop_rule(tmp_path, capsys):
         (["estimate", "REC", "--omega-max", "0.5"], "fewer than 3 bins"),
         (["estimate", "REC", "--json", "no/such/dir/e.json"], "cannot write"),
         (["estimate", "SHORT"], "periods"),
-        (["estimate", "CONST"], "constant"),
         (["estimate", "NAN"], "sample 7 is nan"),
         (["fit", "--out", "o"], "required: record"),
         (["fit", "REC"], "required: --out"),
@@ -339,3 +393,52 @@ def test_python_m_hosid_exits_2_without_traceback(tmp_path, argv):
     assert len(lines) == 1, proc.stderr
     assert lines[0].startswith("hosid: error: ")
     assert proc.stdout == ""
+
+
+# ------------------------------------------------------------------ Ctrl-C, locks
+def test_ctrl_c_keeps_the_chain_and_the_same_command_resumes_it(workdir, tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "fit"
+    argv = [sys.executable, "-m", "hosid", "fit", str(workdir / "rec.csv"), "--out", str(out)]
+    argv += ["--no-progress", "--seed", "4", "--steps", "2500"]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    chain = out / ".hosid-chain.h5"
+    deadline = time.monotonic() + 120
+    while not chain.exists() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)  # the chain is stored after its first 500 steps
+    assert chain.exists(), "the fit stored no chain"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    lines = err.splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("hosid: interrupted; the chain so far is kept; resume with: ")
+    resume = lines[0].split("resume with: ")[1]
+    assert resume.startswith("hosid fit ") and f"--out {out}" in resume
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == []
+    import h5py
+
+    with h5py.File(chain) as f:
+        kept = int(f["mcmc"].attrs["iteration"])
+    assert kept >= 500
+    # the same command completes the fit from the kept chain
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["sampler"]["steps"] == 2500 > kept  # continued, not restarted
+    assert not chain.exists()
+    assert (out / "posterior.nc").exists() and (out / "report.html").exists()
+
+
+def test_a_second_command_on_a_busy_folder_stops_at_once(workdir, tmp_path, capsys):
+    from hosid.output.files import locked_dir
+
+    out = tmp_path / "busy"
+    with locked_dir(out, command="hosid fit other.csv --out busy"):
+        (out / "theirs.txt").write_text("first")
+        argv = ["fit", str(workdir / "rec.csv"), "--steps", "50", "--no-progress"]
+        assert cli.main([*argv, "--out", str(out)]) == 2
+        assert "is in use by 'hosid fit other.csv --out busy'" in one_error_line(capsys)
+    assert (out / "theirs.txt").read_text() == "first"

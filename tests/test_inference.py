@@ -11,7 +11,7 @@ import pytest
 import hosid.inference.sampler as S
 from hosid.components import J2, Identities
 from hosid.components.polyspectral import J4
-from hosid.errors import HosidInputError
+from hosid.errors import HosidInputError, RecordRejected
 from hosid.inference import components_for, estimate, fit
 from hosid.inference.calibrate import calibrate
 from hosid.inference.estimate import likelihood_map
@@ -138,8 +138,11 @@ def test_components_for():
 
 
 def test_estimate_rejects_bad_records():
-    with pytest.raises(HosidInputError, match="constant"):
+    with pytest.raises(RecordRejected, match="constant") as info:
         estimate(Record(np.ones(50_000), 0.02))
+    assert [c.name for c in info.value.checks] == ["oscillator"]
+    with pytest.raises(HosidInputError, match="constant"):  # forced: the state says why
+        estimate(Record(np.ones(50_000), 0.02), force=True)
     short = simulate(PAPER_PARAMS, duration=50.0, rng=np.random.default_rng(2))
     with pytest.raises(HosidInputError, match="periods"):
         estimate(short)

@@ -131,10 +131,19 @@ def test_oscillators_without_a_stationary_state_are_rejected_before_simulating()
         simulate({"a1": 0.5, "a2": -1.0, "S0": 100.0}, rng=np.random.default_rng(0))
 
 
+def test_a_sampling_too_coarse_for_the_resonance_is_refused_before_simulating():
+    # the Gaussian-linearized resonance of the paper's point is 6.54 rad/s: dt must keep
+    # omega_e / omega_N below the record check's failing 0.45
+    with pytest.raises(HosidInputError, match=r"dt = 0.5 s is too coarse for this oscillator"):
+        simulate(PAPER_PARAMS, duration=500.0, dt=0.5, rng=np.random.default_rng(0))
+    with pytest.raises(HosidInputError, match=r"needs dt < 0\.216 s"):
+        simulate(PAPER_PARAMS, duration=500.0, dt=10.0, rng=np.random.default_rng(0))
+
+
 def test_a_response_that_escapes_numerically_is_an_input_error():
-    # dt = 0.5 s with one sub-step: h w_n = 2.5, far outside Heun's stability region
+    # dt = 0.2 s with one sub-step: h w_n = 1.3, outside Heun's stability region
     with pytest.raises(HosidInputError, match="escaped") as err:
-        simulate(PAPER_PARAMS, duration=500.0, dt=0.5, substeps=1, rng=np.random.default_rng(0))
+        simulate(PAPER_PARAMS, duration=500.0, dt=0.2, substeps=1, rng=np.random.default_rng(0))
     assert "too coarse" in str(err.value)
 
 

@@ -1,24 +1,35 @@
 """Command line: argument parsing and error mapping only.
 
-``hosid simulate | estimate | fit | diagnose | report | demo``.  Bad input of any kind
-ends with one line ``hosid: error: <message>`` on stderr and exit code 2, without a
-traceback.
+``hosid simulate | estimate | fit | diagnose | report | demo``.  Every failure ends with
+one line on stderr and no traceback:
+
+- bad input of any kind: ``hosid: error: <message>``, exit code 2;
+- a record that hosid's model class cannot describe (:mod:`hosid.screen`):
+  ``hosid: rejected: <why>``, exit code 3 (``--force`` fits it anyway);
+- Ctrl-C: ``hosid: interrupted; ...`` naming the command that resumes, exit code 130.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import shlex
 import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from hosid import __version__, commands
-from hosid.errors import HosidInputError
+from hosid.errors import (
+    EXIT_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_REJECTED,
+    HosidInputError,
+    RecordRejected,
+)
 
 __all__ = ["build_parser", "main"]
 
-EXIT_USAGE = 2
+EXIT_USAGE = EXIT_INPUT
 
 
 class _UsageError(Exception):
@@ -98,6 +109,16 @@ def _analysis_options(p: argparse.ArgumentParser) -> None:
         choices=("principal", "reduced", "full"),
         default="principal",
         help="trispectral domain of J4: eq (39), eq (64) or all; default principal",
+    )
+    _record_options(p)
+
+
+def _record_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--unit", default="m", metavar="UNIT", help="unit of the record's x; default m")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="analyse a record that fails the record checks anyway (exit 3 otherwise)",
     )
 
 
@@ -217,6 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="the named effect must cut the gap to this fraction; default 0.75",
     )
     dia.add_argument("--seed", type=_integer(0), default=0, help="default 0")
+    _record_options(dia)
     dia.add_argument("--no-progress", action="store_true", help="no progress bar")
     dia.add_argument("--out", required=True, metavar="DIR", help="output directory")
     dia.set_defaults(func=commands.cmd_diagnose)
@@ -237,8 +259,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _resume_hint(args: argparse.Namespace) -> str:
+    if args.command in ("fit", "demo"):
+        return f"the chain so far is kept; resume with: {args.command_line}"
+    return f"nothing was written; rerun: {args.command_line}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code (0, or 2 on bad input)."""
+    """Run the command line; returns the exit code (0; 2 bad input; 3 rejected record;
+    130 interrupted).
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = None
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -246,10 +278,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(
                 "a command is required: simulate, estimate, fit, diagnose, report or demo"
             )
+        args.command_line = shlex.join(["hosid", *argv])
         return args.func(args)
     except (_UsageError, HosidInputError) as exc:
         print(f"hosid: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_USAGE
+    except RecordRejected as exc:
+        print(f"hosid: rejected: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_REJECTED
+    except KeyboardInterrupt:
+        hint = _resume_hint(args) if args is not None and hasattr(args, "command_line") else ""
+        print(f"hosid: interrupted; {hint}".rstrip("; "), file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

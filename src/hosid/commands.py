@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,6 +27,8 @@ METHODS = {
     "moments": "J2",
 }
 FIT_COLUMNS = ("mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk")
+#: The chain a ``hosid fit`` keeps in its ``--out`` folder until the fit is written.
+CHAIN_NAME = ".hosid-chain.h5"
 
 
 def _fmt(value) -> str:
@@ -85,13 +88,6 @@ def _truths(args, record_path: Path) -> dict | None:
     return {k: float(v) for k, v in data.items()}
 
 
-def _out_dir(path: str) -> Path:
-    from hosid.output.files import make_dir
-
-    _check_out(path)
-    return make_dir(path)
-
-
 def _print_fit(summary: dict) -> None:
     params = summary["parameters"]
     print(
@@ -114,6 +110,7 @@ def _print_fit(summary: dict) -> None:
 def cmd_simulate(args) -> int:
     """``hosid simulate``: write a simulated record and its true parameters."""
     from hosid.model.simulate import simulate
+    from hosid.output.files import write_atomic
     from hosid.record import write_record
 
     out = Path(args.out)
@@ -121,6 +118,7 @@ def cmd_simulate(args) -> int:
         raise HosidInputError(
             f"{out}: unknown file type {out.suffix or '(none)'!r}; use .csv or .npz"
         )
+    _check_writable(out)
     params = {k: getattr(args, k) for k in ("a1", "n1", "a2", "n2", "S0")}
     params.update(
         {
@@ -136,53 +134,95 @@ def cmd_simulate(args) -> int:
         rng=np.random.default_rng(args.seed),
         name=out.stem,
     )
-    write_record(record, out)
+    tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp{out.suffix}")
+    try:
+        write_record(record, tmp)
+        os.replace(tmp, out)
+    finally:
+        tmp.unlink(missing_ok=True)
     sidecar = out.with_suffix(".truths.json")
-    sidecar.write_text(json.dumps(params, indent=2) + "\n")
+    write_atomic(sidecar, json.dumps(params, indent=2) + "\n")
     print(f"wrote {out}: {record.n} samples, dt={record.dt:g} s (true parameters: {sidecar})")
     return 0
 
 
 def cmd_estimate(args) -> int:
-    """``hosid estimate``: the calibrated mode and its sd, no sampling."""
+    """``hosid estimate``: the calibrated mode, its sd and 90 % interval, no sampling."""
     from hosid.inference import components_for, estimate
+    from hosid.inference.calibrate import calibrate
 
     record = _read(args.record)
+    if args.json:
+        _check_writable(Path(args.json))
+    checks = _checked(args, record)
     cost = args.cost if args.method is None else METHODS[args.method]
     band = None if args.omega_max is None else (0.0, args.omega_max)
     comps = components_for(cost, band=band, form=args.form, domain=args.domain)
-    est = estimate(record, args.model, comps, block_seconds=args.block_seconds)
-    sd = est.sd
+    est = estimate(
+        record,
+        args.model,
+        comps,
+        block_seconds=args.block_seconds,
+        force=args.force,
+        unit=args.unit,
+        checks=checks,
+    )
+    cal = calibrate(est)  # the adjusted curvature, widened when Hansen's test rejects
+    names = list(est.model.param_names)
+    values = est.theta.tolist()
+    cov = cal.cov
+    if est.model.has("a1"):
+        g = np.array(
+            [t.damping_factor(est.sigma_v) for t in est.model.drift_terms]
+            + [0.0] * (len(est.theta) - est.model.n_drift)
+        )
+        names.append("a1eq")
+        values.append(float(g @ est.theta))
+        k = len(est.theta)
+        G = np.vstack([np.eye(k), g])
+        cov = G @ cov @ G.T
+    sd = np.sqrt(np.diag(cov))
+    z = 1.6448536269514722  # the 95 % quantile of N(0, 1)
     print(
         f"{record.name or args.record}: {est.model!r}, {cost or 'default'} components; "
         f"Hansen J = {_fmt(est.test['J'])} on {est.test['df']} df "
         f"(p = {_fmt(est.test['p_value'])})"
     )
-    rows = [[k, _fmt(v), _fmt(sd[k])] for k, v in est.values.items()]
-    if est.model.has("a1"):
-        c = est.model.drift_terms
-        g = np.array(
-            [t.damping_factor(est.sigma_v) for t in c] + [0.0] * (len(est.theta) - len(c))
-        )
-        rows.append(["a1eq", _fmt(g @ est.theta), _fmt(math.sqrt(g @ est.cov @ g))])
-    print(_table(["parameter", "estimate", "sd"], rows))
+    rows = [
+        [n, _fmt(v), _fmt(s), _fmt(v - z * s), _fmt(v + z * s)]
+        for n, v, s in zip(names, values, sd, strict=True)
+    ]
+    print(_table(["parameter", "estimate", "sd", "5%", "95%"], rows))
     if args.json:
+        from hosid.output.files import write_atomic
         from hosid.output.results import jsonable
 
         data = {
             "record": record.name,
             "model": list(est.model.names),
             "cost": cost,
-            "estimates": est.values,
-            "sd": sd,
+            "unit": args.unit,
+            "estimates": dict(zip(names, values, strict=True)),
+            "sd": dict(zip(names, sd.tolist(), strict=True)),
+            "interval90": {
+                n: [v - z * s, v + z * s] for n, v, s in zip(names, values, sd, strict=True)
+            },
+            "uncertainty": "calibrated curvature (Godambe) of the quasi-likelihood at its mode",
+            "calibration": cal.describe(),
             "hansen": est.test,
+            "checks": [c.as_dict() for c in [*est.checks, cal.check()]],
             "state": est.state.describe(),
         }
-        try:
-            Path(args.json).write_text(json.dumps(jsonable(data), indent=2) + "\n")
-        except OSError as exc:
-            raise HosidInputError(f"cannot write {args.json}: {exc.strerror or exc}") from None
+        write_atomic(Path(args.json), json.dumps(jsonable(data), indent=2) + "\n")
     return 0
+
+
+def _check_writable(path: Path) -> None:
+    """Fail before any work when ``path`` cannot be written."""
+    if path.is_dir():
+        raise HosidInputError(f"{path}: is a directory, not a file")
+    if not path.parent.is_dir():
+        raise HosidInputError(f"cannot write {path}: no folder {path.parent}")
 
 
 def _check_out(path: str) -> None:
@@ -192,17 +232,53 @@ def _check_out(path: str) -> None:
         raise HosidInputError(f"{out}: exists and is not a directory")
 
 
-def _fit_and_report(record, out: Path, *, truths=None, **options) -> int:
-    from hosid.inference import fit
+def _checked(args, record):
+    """The record's checks (:func:`hosid.screen.check_record`); a failure ends the command
+    with :class:`~hosid.errors.RecordRejected` (exit 3) unless ``--force``.
+    """
+    from hosid.screen import check_record, reject_failures
+
+    checks = check_record(record, unit=args.unit)
+    reject_failures(checks, force=args.force)
+    for c in checks:
+        if c.status != "pass":
+            print(f"hosid: {c.status}: {c.name}: {c.message}", file=sys.stderr)
+    return checks
+
+
+def _write_fit(tree, stage: Path) -> list[str]:
     from hosid.output.report import write_report
     from hosid.output.results import save
 
-    tree = fit(record, truths=truths, **options)
-    out = _out_dir(str(out))
-    save(tree, out / "posterior.nc")
-    paths = write_report(tree, out)
-    _print_fit(json.loads((out / "summary.json").read_text(encoding="utf-8")))  # summarized once
-    print("wrote " + ", ".join(str(p) for p in [out / "posterior.nc", *paths]))
+    save(tree, stage / "posterior.nc")
+    return ["posterior.nc", *(p.name for p in write_report(tree, stage))]
+
+
+def _fit_into(out: Path, record, *, command: str, backend: str | None, extra=None, **options):
+    """Fit ``record`` into the locked, staged folder ``out`` (:mod:`hosid.output.files`).
+
+    The chain is kept in ``--backend`` or in ``out/.hosid-chain.h5`` until the fit is
+    written, so that the same command resumes it after Ctrl-C.  ``extra(stage)`` writes
+    more files into the same commit and returns their names.
+    """
+    from hosid.inference import fit
+    from hosid.output.files import locked_dir, staged
+
+    with locked_dir(out, command=command):
+        chain = Path(backend) if backend else out / CHAIN_NAME
+        try:
+            tree = fit(record, backend=chain, **options)
+        except HosidInputError as exc:
+            if backend or "holds a chain of another" not in str(exc):
+                raise
+            chain.unlink()  # an interrupted run with other settings: start afresh
+            tree = fit(record, backend=chain, **options)
+        with staged(out, command=command) as stage:
+            names = _write_fit(tree, stage) + (extra(stage) if extra else [])
+        if not backend:
+            chain.unlink(missing_ok=True)
+    _print_fit(json.loads((out / "summary.json").read_text(encoding="utf-8")))
+    print("wrote " + ", ".join(str(out / n) for n in names))
     return 0
 
 
@@ -214,10 +290,16 @@ def cmd_fit(args) -> int:
     record = _read(args.record)
     truths = _truths(args, Path(args.record))
     _check_out(args.out)
-    return _fit_and_report(
-        record,
+    checks = _checked(args, record)
+    return _fit_into(
         Path(args.out),
+        record,
+        command=args.command_line,
+        backend=backend,
         truths=truths,
+        checks=checks,
+        force=args.force,
+        unit=args.unit,
         model=args.model,
         cost=args.cost,
         constrained=not args.unconstrained,
@@ -225,7 +307,6 @@ def cmd_fit(args) -> int:
         n_steps=args.steps,
         seed=args.seed,
         progress=not args.no_progress,
-        backend=backend,
         block_seconds=args.block_seconds,
         omega_max=args.omega_max,
         form=args.form,
@@ -237,42 +318,47 @@ def cmd_diagnose(args) -> int:
     """``hosid diagnose``: name the effect that closes the gap; write its report."""
     from hosid.check.diagnose import diagnose
     from hosid.output.diagnosis import write_diagnosis
+    from hosid.output.files import output_dir
     from hosid.output.results import save
 
     record = _read(args.record)
     _check_out(args.out)
+    _checked(args, record)
     candidates = None
     if args.candidates is not None:
         candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
-    diag = diagnose(
-        record,
-        args.model,
-        rng=np.random.default_rng(args.seed),
-        candidates=candidates,
-        replicates=args.replicates,
-        threshold=args.threshold,
-        shrink=args.shrink,
-        progress=not args.no_progress,
-    )
-    out = _out_dir(args.out)
-    save(diag.final_tree, out / "posterior.nc")
-    paths = write_diagnosis(diag, out)
+    with output_dir(args.out, command=args.command_line) as stage:
+        diag = diagnose(
+            record,
+            args.model,
+            rng=np.random.default_rng(args.seed),
+            candidates=candidates,
+            replicates=args.replicates,
+            threshold=args.threshold,
+            shrink=args.shrink,
+            progress=not args.no_progress,
+        )
+        save(diag.final_tree, stage / "posterior.nc")
+        names = ["posterior.nc", *(p.name for p in write_diagnosis(diag, stage))]
+    out = Path(args.out)
     rep = diag.report()
     print(f"base {' + '.join(rep['base'])}: gap {_fmt(rep['gap_before'])}")
     print(f"named effect: {rep['named_effect'] or 'none'} - {rep['decision']}")
-    print("wrote " + ", ".join(str(p) for p in [out / "posterior.nc", *paths]))
+    print("wrote " + ", ".join(str(out / n) for n in names))
     return 0
 
 
 def cmd_report(args) -> int:
     """``hosid report``: rewrite a fit's report from its posterior.nc."""
+    from hosid.output.files import output_dir
     from hosid.output.report import write_report
     from hosid.output.results import load
 
     out = Path(args.dir)
     tree = load(out / "posterior.nc")
-    paths = write_report(tree, out)
-    print("wrote " + ", ".join(str(p) for p in paths))
+    with output_dir(out, command=args.command_line, keep=("posterior.nc",)) as stage:
+        names = [p.name for p in write_report(tree, stage)]
+    print("wrote " + ", ".join(str(out / n) for n in names))
     return 0
 
 
@@ -281,7 +367,7 @@ def cmd_demo(args) -> int:
     from hosid.model.simulate import PAPER_PARAMS, simulate
     from hosid.record import write_record
 
-    out = _out_dir(args.out)
+    _check_out(args.out)
     record = simulate(
         PAPER_PARAMS,
         duration=2000.0,
@@ -289,8 +375,18 @@ def cmd_demo(args) -> int:
         rng=np.random.default_rng(args.seed),
         name="demo_record",
     )
-    write_record(record, out / "demo_record.csv")
     print(f"paper oscillator {PAPER_PARAMS}, 2000 s at dt = 0.02 s, seed {args.seed}")
-    return _fit_and_report(
-        record, out, truths=dict(PAPER_PARAMS), seed=args.seed, progress=not args.no_progress
+
+    def extra(stage: Path) -> list[str]:
+        return [write_record(record, stage / "demo_record.csv").name]
+
+    return _fit_into(
+        Path(args.out),
+        record,
+        command=args.command_line,
+        backend=None,
+        extra=extra,
+        truths=dict(PAPER_PARAMS),
+        seed=args.seed,
+        progress=not args.no_progress,
     )

@@ -13,10 +13,14 @@ from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
-__all__ = ["STATUSES", "Check", "overall"]
+__all__ = ["ESS_MIN", "RHAT_MAX", "STATUSES", "Check", "convergence", "overall"]
 
 #: The statuses, from best to worst.
 STATUSES = ("pass", "warn", "fail")
+#: A chain has converged when every rank-normalized R-hat is below this ...
+RHAT_MAX = 1.01
+#: ... and every bulk and tail effective sample size at least this.
+ESS_MIN = 400.0
 
 
 @dataclass(frozen=True)
@@ -51,3 +55,20 @@ def overall(checks: Iterable[Check]) -> str:
     for c in checks:
         worst = max(worst, STATUSES.index(c.status))
     return STATUSES[worst]
+
+
+def convergence(diagnostics: Mapping[str, float]) -> Check:
+    """The sampler's verdict from the worst R-hat and ESS (``r_hat_max``,
+    ``ess_bulk_min``, ``ess_tail_min``): ``warn`` outside :data:`RHAT_MAX` /
+    :data:`ESS_MIN`.
+    """
+    r = float(diagnostics["r_hat_max"])
+    e = min(float(diagnostics["ess_bulk_min"]), float(diagnostics["ess_tail_min"]))
+    ok = r < RHAT_MAX and e >= ESS_MIN
+    return Check(
+        "convergence",
+        "pass" if ok else "warn",
+        r,
+        f"worst R-hat {r:.4f} (< {RHAT_MAX} wanted), smallest ESS {e:.0f} (>= {ESS_MIN:.0f})"
+        + ("" if ok else ": run longer (--steps) before trusting the intervals"),
+    )

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..verdicts import Check
 from .estimate import Estimate
 
 __all__ = ["HANSEN_P", "Calibrated", "calibrate"]
@@ -62,6 +63,29 @@ class Calibrated:
     def describe(self) -> dict:
         """What was done and its numbers (attrs and report)."""
         return {"method": "gmm", "dispersion": self.dispersion, **self.numbers}
+
+    def check(self) -> Check:
+        """The verdict of Hansen's test: ``warn`` when the equations disagree and the
+        posterior was widened.
+        """
+        t = self.est.test
+        if not t["df"] > 0:
+            return Check(
+                "calibration", "pass", None, "just identified: no over-identification test"
+            )
+        widened = self.dispersion > 1.0
+        return Check(
+            "calibration",
+            "warn" if widened else "pass",
+            t["p_value"],
+            f"Hansen's test J = {t['J']:.3g} on {t['df']} df, p = {t['p_value']:.2g}"
+            + (
+                f" < {HANSEN_P}: the model misses something in the record; the posterior was "
+                f"widened by sqrt({self.dispersion:.3g}) (try hosid diagnose)"
+                if widened
+                else f" (>= {HANSEN_P}: the estimating equations agree)"
+            ),
+        )
 
 
 def calibrate(est: Estimate) -> Calibrated:

@@ -42,7 +42,9 @@ from ..errors import HosidInputError
 from ..model.model import Model
 from ..model.priors import LogUniform, PriorSet
 from ..record import Record
+from ..screen import check_record, reject_failures
 from ..state import RecordState
+from ..verdicts import Check
 from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
 from .pilot import pilot as pilot_estimate
 
@@ -120,6 +122,7 @@ class Estimate:
     sigma_v: float  # velocity sd with the restoration (eq 65)
     test: dict
     pilot: np.ndarray
+    checks: list[Check] = dataclasses.field(default_factory=list)  # hosid.screen
 
     @property
     def values(self) -> dict[str, float]:
@@ -159,16 +162,31 @@ def estimate(
     start: np.ndarray | None = None,
     rounds: int = 2,
     block_seconds: float | None = None,
+    force: bool = False,
+    unit: str = "m",
+    checks: Sequence[Check] | None = None,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` and its mode (module docstring),
     searched within the default priors' supports.
 
+    A :class:`~hosid.record.Record` is checked first (:func:`hosid.screen.check_record`);
+    ``force`` estimates a record that fails a check anyway, ``unit`` names the
+    displacement's unit in the checks' messages, ``checks`` passes the record's checks
+    when the caller already made them.
+
     Raises
     ------
+    RecordRejected
+        If the record fails a check (a constant, white noise, tones, a random walk, a
+        clipped or too short record ...) and ``force`` is false.
     HosidInputError
         If the record is too short, constant, or not described by the model.
     """
     model = Model.from_spec(model)
+    checks = list(checks or [])
+    if not isinstance(record, RecordState):
+        checks = checks or check_record(record, unit=unit)
+        reject_failures(checks, force=force)
     state = (
         record
         if isinstance(record, RecordState)
@@ -203,7 +221,7 @@ def estimate(
     cov = cov * np.outer(f, f)
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
-    return Estimate(model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0)
+    return Estimate(model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks)
 
 
 def likelihood_map(est: Estimate, draws: np.ndarray, loglike=None, n: int = 61) -> dict | None:

@@ -13,7 +13,6 @@ is one arviz ``DataTree`` (:mod:`hosid.output.results`).
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
@@ -32,8 +31,10 @@ from ..model.model import Model
 from ..model.priors import PriorSet
 from ..output.results import build_tree
 from ..record import Record
+from ..verdicts import Check, convergence
 from . import sampler as S
 from .calibrate import calibrate
+from .chains import ChainFile
 from .estimate import components_for, estimate, likelihood_map, log_params
 
 __all__ = ["fit"]
@@ -43,40 +44,6 @@ def _rng(seed) -> np.random.Generator:
     if isinstance(seed, np.random.Generator):
         return seed
     return np.random.default_rng(np.random.SeedSequence(seed))
-
-
-def _backend(path, n_walkers: int, p: int, signature: dict) -> emcee.backends.HDFBackend:
-    """An HDF5 chain that remembers the record and settings it was run with."""
-    import h5py
-
-    be = emcee.backends.HDFBackend(str(path))
-    text = json.dumps(signature, sort_keys=True)
-    try:
-        existing = be.iteration > 0
-    except (OSError, KeyError, AttributeError):
-        existing = False
-    except Exception as exc:  # h5py raises its own errors on unreadable files
-        raise HosidInputError(f"{path}: not a chain backend ({exc})") from None
-    if existing:
-        with h5py.File(path, "r") as f:
-            stored = f[be.name].attrs.get("hosid_signature")
-        if stored != text:
-            raise HosidInputError(
-                f"{path} holds a chain of another record or other settings; "
-                "remove it or choose another --backend"
-            )
-        if be.shape != (n_walkers, p):
-            raise HosidInputError(f"{path} holds {be.shape[0]} walkers x {be.shape[1]} params")
-        return be
-    try:
-        be.reset(n_walkers, p)
-        with h5py.File(path, "a") as f:
-            f[be.name].attrs["hosid_signature"] = text
-    except OSError as exc:
-        raise HosidInputError(
-            f"cannot use {path} as a chain backend (not writable, or not an HDF5 file): {exc}"
-        ) from None
-    return be
 
 
 def fit(
@@ -101,6 +68,8 @@ def fit(
     with_map: bool = True,
     start: str = "auto",
     unit: str = "m",
+    force: bool = False,
+    checks: Sequence[Check] | None = None,
 ) -> xr.DataTree:
     r"""Sample the calibrated quasi-posterior of ``model`` given ``record``.
 
@@ -131,7 +100,8 @@ def fit(
     progress : bool
         One labelled progress bar.
     backend : path, optional
-        HDF5 chain to store or resume (same record and settings only).
+        HDF5 chain to store (after every chunk of steps and on Ctrl-C) or resume (same
+        record and settings only; :class:`hosid.inference.chains.ChainFile`).
     truths : mapping, optional
         True values (simulated records), kept for plots.
     with_map : bool
@@ -143,6 +113,16 @@ def fit(
         their weights do not depend on where the walkers start).
     unit : str
         The unit of the record's displacement (labels of the report).
+    force : bool
+        Fit a record that fails a check of :func:`hosid.screen.check_record` anyway (the
+        failure stays in the ``checks`` attribute and the report).
+
+    Raises
+    ------
+    RecordRejected
+        If the record fails a check and ``force`` is false.
+    HosidInputError
+        On bad settings, or a record the model's equations cannot be solved for.
     """
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
@@ -159,7 +139,9 @@ def fit(
     else:
         comps = list(components)
         cost = cost or "custom"
-    est = estimate(record, model, comps, block_seconds=block_seconds)
+    est = estimate(
+        record, model, comps, block_seconds=block_seconds, force=force, unit=unit, checks=checks
+    )
     timings["estimate"] = time.perf_counter() - t0
     if priors is None:
         priors = model.default_priors(est.scales(), constrained=constrained)
@@ -210,7 +192,7 @@ def fit(
             "form": form,
             "domain": domain,
         }
-        be = _backend(backend, n_walkers, len(names), signature)
+        be = ChainFile(backend, signature, n_walkers, len(names))
     kde = cost is not None or not constrained  # the paper's valley and twin modes
     chain = S.run(
         log_prob,
@@ -225,7 +207,7 @@ def fit(
         mirror=damping if not constrained else (),
         kde=kde,
         backend=be,
-        progress="sampling" if progress else False,
+        progress="hosid fit: sampling" if progress else False,
     )
     timings["sampling"] = time.perf_counter() - t0 - sum(timings.values())
 
@@ -277,9 +259,14 @@ def fit(
             "burn_in": chain.burn,
             "autocorr_time": dict(zip(names, chain.autocorr.tolist(), strict=True)),
             "acceptance": chain.acceptance,
+            **chain.diagnostics,
             "moves": ("DE 0.7, DE(gamma=1) 0.1, KDE 0.2" if kde else "DE 0.9, DE(gamma=1) 0.1")
             + ("" if constrained else "; x0.9 and mirror 0.1"),
         },
+        "checks": [
+            c.as_dict() for c in [*est.checks, cal.check(), convergence(chain.diagnostics)]
+        ],
+        "forced": force and any(c.status == "fail" for c in est.checks),
         "truths": dict(truths) if truths else None,
         "timings": timings,
         "fit_seconds": time.perf_counter() - t0,

@@ -26,16 +26,20 @@ log-likelihoods and the log prior as blobs.
 from __future__ import annotations
 
 import math
+import signal
+import threading
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import emcee
 import numpy as np
 
 from ..errors import HosidInputError
+from ..progress import bar as progress_bar
 
-__all__ = ["ESS_STOP", "RHAT_STOP", "Chain", "run"]
+__all__ = ["ESS_STOP", "RHAT_STOP", "Chain", "diagnostics", "run"]
 
 RHAT_STOP = 1.007
 ESS_STOP = 500.0
@@ -53,25 +57,40 @@ class Chain:
     burn: int
     autocorr: np.ndarray
     acceptance: float
+    diagnostics: dict  # worst R-hat, bulk and tail ESS of the kept draws
 
 
-def _diagnostics_pass(u: np.ndarray) -> bool:
-    """R-hat and bulk/tail ESS of every coordinate within the margins."""
+def diagnostics(u: np.ndarray) -> dict[str, float]:
+    """The worst rank-normalized R-hat and bulk and tail ESS over the coordinates of
+    ``u`` ``(walker, draw, p)`` (arviz).
+    """
     import arviz as az
     import xarray as xr
 
-    if u.shape[1] < 50:
-        return False
+    if u.shape[1] < 4:
+        return {"r_hat_max": math.inf, "ess_bulk_min": 0.0, "ess_tail_min": 0.0}
     post = xr.Dataset({f"u{i}": (("chain", "draw"), u[:, :, i]) for i in range(u.shape[2])})
     with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore")
         rhat = az.rhat(post)
         bulk = az.ess(post, method="bulk")
         tail = az.ess(post, method="tail")
-    return all(
-        float(rhat[k]) < RHAT_STOP and float(bulk[k]) >= ESS_STOP and float(tail[k]) >= ESS_STOP
-        for k in post.data_vars
-    )
+    r = [float(rhat[k]) for k in post.data_vars]
+    b = [float(bulk[k]) for k in post.data_vars]
+    t = [float(tail[k]) for k in post.data_vars]
+    return {  # NaN (a constant coordinate) counts as failing
+        "r_hat_max": max(v if math.isfinite(v) else math.inf for v in r),
+        "ess_bulk_min": min(v if math.isfinite(v) else 0.0 for v in b),
+        "ess_tail_min": min(v if math.isfinite(v) else 0.0 for v in t),
+    }
+
+
+def _diagnostics_pass(u: np.ndarray) -> bool:
+    """R-hat and bulk/tail ESS of every coordinate within the margins."""
+    if u.shape[1] < 50:
+        return False
+    d = diagnostics(u)
+    return d["r_hat_max"] < RHAT_STOP and min(d["ess_bulk_min"], d["ess_tail_min"]) >= ESS_STOP
 
 
 def _mirror(damping: Sequence[int]):
@@ -119,7 +138,9 @@ def run(
     kde : bool
         Use the KDE move (curved, long or multimodal posteriors).
     backend : emcee backend, optional
-        A chain to continue (``backend.iteration > 0``) or to fill.
+        A chain to continue (``backend.iteration > 0``) or to fill; a
+        :class:`hosid.inference.chains.ChainFile` is saved after every chunk of
+        :data:`CHUNK` steps and when the run is interrupted (Ctrl-C).
     progress : bool or str
         tqdm progress bar (a string is its label).
     """
@@ -157,36 +178,47 @@ def run(
         state = _start(target, modes, cov, logs, rng, n_walkers)
     bar = None
     if progress:
-        from tqdm.auto import tqdm
-
         label = progress if isinstance(progress, str) else "sampling"
         total = int(n_steps) if n_steps is not None else None
-        bar = tqdm(total=total, initial=sampler.iteration, desc=label, unit="step", leave=False)
+        bar = progress_bar(label, total=total, initial=sampler.iteration, unit="step")
 
     def advance(start, steps):
         if steps <= 0:
             return
-        for _ in sampler.sample(start, iterations=steps, store=True):
-            if bar is not None:
-                bar.update()
+        with _deferred_interrupt() as interrupted:
+            for _ in sampler.sample(start, iterations=steps, store=True):
+                if bar is not None:
+                    bar.update()
+                if interrupted:
+                    raise KeyboardInterrupt  # between steps, outside emcee's wrapper
 
-    if n_steps is not None:
-        advance(
-            state if sampler.iteration == 0 else sampler.get_last_sample(),
-            int(n_steps) - sampler.iteration,
-        )
-    else:
-        while sampler.iteration < max_steps:
-            advance(state if state is not None else sampler.get_last_sample(), CHUNK)
-            state = None
+    try:
+        while True:
             done = sampler.iteration
-            burn = _burn(sampler, done)
-            if done - burn >= 50 * _tau_max(sampler, done) and _diagnostics_pass(
-                np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
-            ):
+            if n_steps is not None:
+                todo = min(CHUNK, int(n_steps) - done)
+            else:
+                todo = CHUNK if done < max_steps else 0
+            if todo <= 0:
                 break
-    if bar is not None:
-        bar.close()
+            advance(state if state is not None else sampler.get_last_sample(), todo)
+            state = None
+            if hasattr(backend, "save"):
+                backend.save()  # a checkpoint per chunk (hosid.inference.chains)
+            if n_steps is None:
+                done = sampler.iteration
+                burn = _burn(sampler, done)
+                if done - burn >= 50 * _tau_max(sampler, done) and _diagnostics_pass(
+                    np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
+                ):
+                    break
+    except KeyboardInterrupt:
+        if hasattr(backend, "save") and sampler.iteration > 0:
+            backend.save()  # what was sampled is kept for the resume
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
     done = sampler.iteration
     burn = _burn(sampler, done)
     u = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
@@ -201,7 +233,25 @@ def run(
         burn=burn,
         autocorr=_taus(sampler, done),
         acceptance=float(np.mean(sampler.acceptance_fraction)),
+        diagnostics=diagnostics(u),
     )
+
+
+@contextmanager
+def _deferred_interrupt() -> Iterator[list]:
+    """Ctrl-C during sampling takes effect between two steps: emcee's wrapper of the
+    log-probability prints a traceback for any exception raised inside it.  Yields a
+    list that is non-empty once SIGINT arrived (main thread only; elsewhere a no-op).
+    """
+    flag: list = []
+    if threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+    previous = signal.signal(signal.SIGINT, lambda *_: flag.append(True))
+    try:
+        yield flag
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _taus(sampler, done: int) -> np.ndarray:

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import HosidInputError
 from ..record import Record
+from ..screen import THRESHOLDS
 
 __all__ = ["PAPER_PARAMS", "SIM_KEYS", "equivalent_rate", "simulate", "simulate_ensemble"]
 
@@ -134,6 +135,31 @@ def _check(params: Mapping[str, float], duration: float, dt: float, substeps: in
         raise HosidInputError("the oscillator needs a restoring force: a2 > 0 or n2 > 0")
     if int(substeps) < 1:
         raise HosidInputError("substeps must be at least 1")
+    w = natural_frequency(values)
+    limit = float(THRESHOLDS["sampling"][1])  # where the record check fails omega_e / omega_N
+    if w * dt / math.pi > limit:
+        raise HosidInputError(
+            f"dt = {dt:g} s is too coarse for this oscillator: its resonance near {w:.3g} "
+            f"rad/s needs dt < {limit * math.pi / w:.3g} s (more than {2 / limit:.1f} samples "
+            "a period)"
+        )
+
+
+def natural_frequency(params: Mapping[str, float]) -> float:
+    r"""The equivalent natural frequency :math:`\sqrt{a_2 + 3n_2\sigma_x^2}` of the
+    Gaussian-linearized oscillator, :math:`\sigma_x^2 = \pi S_0/(a_{1eq}k_{eq})`
+    (fixed point), for the simulation's sampling check.
+    """
+    a2, n2 = float(params.get("a2", 0.0)), float(params.get("n2", 0.0))
+    c = equivalent_rate(params)
+    k = max(a2, 1e-12)
+    for _ in range(100):
+        var = math.pi * float(params.get("S0", 0.0)) / (c * k)
+        k_new = max(a2 + 3.0 * n2 * var, 1e-12)
+        if abs(k_new - k) <= 1e-10 * k:
+            break
+        k = k_new
+    return math.sqrt(k)
 
 
 def simulate(

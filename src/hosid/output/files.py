@@ -35,10 +35,12 @@ __all__ = [
     "LOCK_NAME",
     "MANIFEST_NAME",
     "b64",
+    "locked_dir",
     "make_dir",
     "output_dir",
     "png",
     "render",
+    "staged",
     "write_atomic",
 ]
 
@@ -121,16 +123,19 @@ def _lock(out: Path, command: str):
     return fh
 
 
-def _commit(stage: Path, out: Path, command: str) -> None:
-    """Move the staged files into ``out``; drop the previous command's other files."""
+def _commit(stage: Path, out: Path, command: str, keep: tuple[str, ...] = ()) -> None:
+    """Move the staged files into ``out``; drop the previous command's other files
+    (except ``keep``).
+    """
     manifest = out / MANIFEST_NAME
     try:
         previous = set(json.loads(manifest.read_text())["files"])
     except (OSError, ValueError, KeyError, TypeError):
         previous = set()
-    names = sorted(p.name for p in stage.iterdir())
-    for name in names:
+    staged = sorted(p.name for p in stage.iterdir())
+    for name in staged:
         os.replace(stage / name, out / name)
+    names = sorted(set(staged) | (previous & set(keep)))
     for name in previous - set(names):
         if "/" not in name and not name.startswith("."):
             (out / name).unlink(missing_ok=True)
@@ -142,8 +147,9 @@ def _commit(stage: Path, out: Path, command: str) -> None:
 def locked_dir(path: str | Path, *, command: str) -> Iterator[Path]:
     """Create ``path`` if needed and hold its lock while the block runs (a second command
     on the folder stops at once); a folder created here is removed again when the block
-    raises.  :func:`output_dir` builds on it; commands that write many results one by one
-    (``hosid batch``) use it directly with :func:`write_atomic`.
+    raises and left nothing in it (a chain to resume from stays).  :func:`output_dir`
+    builds on it; commands that write many results one by one (``hosid batch``) use it
+    directly with :func:`write_atomic`.
 
     Raises
     ------
@@ -167,14 +173,32 @@ def locked_dir(path: str | Path, *, command: str) -> Iterator[Path]:
         yield out
         ok = True
     finally:
-        if created and not ok:
+        # a folder made here goes again on failure, unless something to resume from is in it
+        if created and not ok and {p.name for p in out.iterdir()} <= {LOCK_NAME}:
             shutil.rmtree(out, ignore_errors=True)
         fh.close()
 
 
 @contextmanager
-def output_dir(path: str | Path, *, command: str) -> Iterator[Path]:
-    """Create, lock and stage the output folder ``path`` (module docstring).
+def staged(out: Path, *, command: str, keep: tuple[str, ...] = ()) -> Iterator[Path]:
+    """A staging directory inside ``out``, committed into it when the block succeeds
+    (module docstring); the caller holds ``out``'s lock (:func:`locked_dir`).  ``keep``
+    names files of the previous command that stay (``hosid report`` rewrites the report
+    beside the fit's ``posterior.nc``).
+    """
+    stage = Path(out) / f".staging-{secrets.token_hex(4)}"
+    try:
+        stage.mkdir()
+        yield stage
+        _commit(stage, Path(out), command, keep)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+@contextmanager
+def output_dir(path: str | Path, *, command: str, keep: tuple[str, ...] = ()) -> Iterator[Path]:
+    """Create, lock and stage the output folder ``path`` (module docstring):
+    :func:`locked_dir` and :func:`staged` in one.
 
     Yields the staging directory: write every result file into it (with any writer);
     the files replace the folder's contents only when the ``with`` block ends without
@@ -186,11 +210,5 @@ def output_dir(path: str | Path, *, command: str) -> Iterator[Path]:
         If ``path`` exists and is not a directory, cannot be created or written, or is
         locked by another command.
     """
-    with locked_dir(path, command=command) as out:
-        stage = out / f".staging-{secrets.token_hex(4)}"
-        try:
-            stage.mkdir()
-            yield stage
-            _commit(stage, out, command)
-        finally:
-            shutil.rmtree(stage, ignore_errors=True)
+    with locked_dir(path, command=command) as out, staged(out, command=command, keep=keep) as st:
+        yield st

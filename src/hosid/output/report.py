@@ -217,6 +217,8 @@ def _context(
         "rhat_max": RHAT_MAX,
         "ess_min": ESS_MIN,
         "calibration": _calibration(summary),
+        "checks": [{**c, "value": _num(c.get("value"))} for c in summary.get("checks") or []],
+        "verdict_class": {"pass": "ok", "warn": "warn", "fail": "fail"}[summary["verdict"]],
         "columns": [_HEADERS.get(c, c) for c in COLUMNS],
         "rows": _table(summary, truths),
         "has_truth": bool(truths),

@@ -40,6 +40,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import HosidInputError
+from ..verdicts import ESS_MIN, RHAT_MAX, Check, overall
 
 __all__ = [
     "ESS_MIN",
@@ -53,9 +54,6 @@ __all__ = [
     "save",
     "summarize",
 ]
-
-RHAT_MAX = 1.01
-ESS_MIN = 400.0
 
 
 class ConvergenceWarning(UserWarning):
@@ -174,7 +172,10 @@ def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
     """Posterior summary (:func:`arviz.summary`) with convergence checks.
 
     Per variable: ``mean``, ``sd``, the 5 / 25 / 50 / 75 / 95 % quantiles, ``r_hat``,
-    ``ess_bulk``, ``ess_tail``.  ``converged`` is true when every R-hat is below
+    ``ess_bulk``, ``ess_tail``.  ``checks`` lists the fit's verdicts
+    (:mod:`hosid.verdicts`: the record checks, calibration, convergence) and ``verdict``
+    is the worst of them; ``forced`` says that a record that failed a check was fitted
+    anyway.  ``converged`` is true when every R-hat is below
     :data:`RHAT_MAX` and every ESS at least :data:`ESS_MIN`; otherwise the failures are
     listed (and a :class:`ConvergenceWarning` issued when ``warn``).
     """
@@ -212,6 +213,7 @@ def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
             ConvergenceWarning,
             stacklevel=2,
         )
+    checks = attr(tree, "checks") or []
     return {
         "record": attr(tree, "record"),
         "record_hash": attr(tree, "record_hash"),
@@ -224,6 +226,9 @@ def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
         "n_draws": int(post.sizes["draw"]),
         "converged": not failures,
         "diagnostic_failures": failures,
+        "checks": checks,
+        "verdict": overall(Check.from_dict(c) for c in checks),
+        "forced": bool(attr(tree, "forced", 0)),
         "fit_seconds": attr(tree, "fit_seconds"),
         "calibration": attr(tree, "calibration"),
         "settings": attr(tree, "settings"),
