@@ -200,3 +200,21 @@ def test_bispectral_domain(k_min):
     assert k.shape[0] == sum(25 - 2 * k2 for k2 in range(lo, 13))
     if k_min <= 2:
         assert k.shape == (121, 3)
+
+
+def test_blocks_stay_inside_segments():
+    # segments of 3000, 500 and 2100 samples hold 2, 0 and 2 blocks of 1024
+    bounds = [(0, 3000), (3000, 3500), (3500, 5600)]
+    lay = choose_layout(5600, DT, OMEGA_PAPER, block_seconds=20.48, min_blocks=4, bounds=bounds)
+    assert (lay.M, lay.B) == (1024, 4)
+    np.testing.assert_array_equal(lay.offsets, [0, 1024, 3500, 4524])
+    y = np.arange(5600.0)
+    blocks = lay.take(y)
+    np.testing.assert_array_equal(blocks[:, 0], lay.offsets)
+    np.testing.assert_array_equal(block_means(y, lay), lay.offsets + 511.5)
+    with pytest.raises(HosidInputError, match="in 3 segments\\) is too short for 5 blocks"):
+        choose_layout(5600, DT, OMEGA_PAPER, block_seconds=20.48, min_blocks=5, bounds=bounds)
+    # automatic blocks are halved until the segments hold enough of them
+    auto = choose_layout(5600, DT, OMEGA_PAPER, min_blocks=10, bounds=bounds)
+    assert (auto.M, auto.B) == (256, 20)  # 512 gives 5 + 0 + 4 = 9
+    assert choose_layout(5600, DT, OMEGA_PAPER, min_blocks=10).starts is None

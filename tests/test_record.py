@@ -218,3 +218,139 @@ def test_record_validation(x, dt, match):
 
 def test_input_error_is_value_error():
     assert issubclass(HosidInputError, ValueError)
+
+
+# ------------------------------------------------------------------------ segments
+@pytest.fixture
+def segmented() -> Record:
+    rng = np.random.default_rng(8)
+    return Record.from_segments([rng.standard_normal(n) for n in (40, 16, 25)], 0.5, "seg")
+
+
+def test_segments_layout(segmented):
+    assert segmented.segments == (0, 40, 56)
+    assert segmented.bounds == ((0, 40), (40, 56), (56, 81))
+    assert segmented.n_segments == 3 and segmented.n == 81
+    parts = segmented.split(segmented.x)
+    assert [p.size for p in parts] == [40, 16, 25]
+    np.testing.assert_array_equal(np.concatenate(parts), segmented.x)
+    np.testing.assert_array_equal(np.bincount(segmented.labels), [40, 16, 25])
+    assert repr(segmented) == "Record(n=81, dt=0.5, name='seg', segments=3)"
+
+
+def test_one_segment_is_the_default_and_hashes_as_before(record):
+    import hashlib
+
+    assert record.segments == (0,) and record.n_segments == 1
+    h = hashlib.sha256(record.x.tobytes())
+    h.update(np.float64(record.dt).tobytes())
+    assert record.hash == h.hexdigest()[:16]
+    assert Record(record.x, record.dt, segments=[0]).hash == record.hash
+
+
+def test_hash_covers_the_segments(segmented):
+    joined = Record(segmented.x, segmented.dt)
+    moved = Record(segmented.x, segmented.dt, segments=(0, 41, 57))
+    assert len({segmented.hash, joined.hash, moved.hash}) == 3
+
+
+@pytest.mark.parametrize(
+    ("segments", "match"),
+    [
+        ((5, 30), "first segment must start at sample 0"),
+        ((0, 10), "segment 0 .* has 10 samples"),
+        ((0, 50, 40), "segment 1 .* has -10 samples"),
+        ((0, 70), "segment 1 .* has 11 samples"),
+        ((0.0, 40.0), "start indices"),
+        ([], "start indices"),
+    ],
+)
+def test_bad_segment_starts(segments, match):
+    with pytest.raises(HosidInputError, match=match):
+        Record(np.zeros(81), 0.1, segments=segments)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_segmented_round_trip(segmented, tmp_path, suffix):
+    back = read_record(write_record(segmented, tmp_path / f"s{suffix}"))
+    assert back.segments == segmented.segments
+    assert back.dt == pytest.approx(segmented.dt, rel=1e-12)
+    np.testing.assert_allclose(back.x, segmented.x, rtol=1e-9, atol=0)
+    if suffix == ".npz":
+        assert back.hash == segmented.hash
+
+
+def _seg_csv(tmp_path, t, x, seg, name="s.csv"):
+    path = tmp_path / name
+    rows = [f"{ti!r},{xi!r},{si}" for ti, xi, si in zip(t, x, seg, strict=True)]
+    path.write_text("t,x,segment\n" + "\n".join(rows))
+    return path
+
+
+def test_csv_segments_may_jump_in_time(tmp_path):
+    t = np.r_[np.arange(20) * 0.1, 100.0 + np.arange(30) * 0.1, -5 + np.arange(16) * 0.1]
+    seg = np.r_[np.full(20, 7), np.full(30, 2), np.full(16, 9)]
+    rec = read_record(_seg_csv(tmp_path, t.tolist(), np.arange(66.0).tolist(), seg.tolist()))
+    assert rec.segments == (0, 20, 50)
+    assert rec.dt == pytest.approx(0.1, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("seg", "t_bump", "match"),
+    [
+        ([0] * 20 + [1.5] * 20, None, r"line 22, column 'segment': 1.5 is not an integer"),
+        ([0] * 20 + [1] * 10 + [0] * 10, None, "segment 0 is not contiguous: .* line 32"),
+        ([0] * 20 + [1] * 20, 25, r"non-uniform sampling in segment 1: .*step 5"),
+        ([0] * 20 + [1] * 20, 0, r"non-uniform sampling in segment 0: .*step 0"),
+    ],
+)
+def test_csv_bad_segments(tmp_path, seg, t_bump, match):
+    t = np.r_[np.arange(20) * 0.1, 50 + np.arange(20) * 0.1]
+    if t_bump is not None:
+        t[t_bump + 1] += 0.03
+    with pytest.raises(HosidInputError, match=match) as err:
+        read_record(_seg_csv(tmp_path, t.tolist(), np.zeros(40).tolist(), seg))
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("row", "match"),
+    [
+        ("0.3,abc", r"line 5, column 'x': 'abc' is not a number"),
+        ("zz,1", r"line 5, column 't': 'zz' is not a number"),
+        ("0.3", r"line 5 has 1 fields; column 'x' is field 2"),
+    ],
+)
+def test_csv_bad_cell_names_column_and_line(tmp_path, row, match):
+    lines = ["t,x", *(f"{0.1 * i!r},1" for i in range(3)), row]
+    lines += [f"{0.1 * i!r},1" for i in range(4, 20)]
+    path = tmp_path / "cells.csv"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(HosidInputError, match=match):
+        read_record(path)
+
+
+def test_npz_segments_as_rows_or_labels(tmp_path):
+    x = np.arange(60.0).reshape(3, 20)
+    np.savez(tmp_path / "rows.npz", x=x, dt=0.2)
+    rec = read_record(tmp_path / "rows.npz")
+    assert rec.segments == (0, 20, 40)
+    np.testing.assert_array_equal(rec.x, x.ravel())
+    t = 0.2 * np.arange(20) + np.array([[0.0], [10.0], [30.0]])
+    np.savez(tmp_path / "rows_t.npz", x=x, t=t)
+    assert read_record(tmp_path / "rows_t.npz").dt == pytest.approx(0.2)
+    np.savez(tmp_path / "lab.npz", x=x.ravel(), dt=0.2, segment=np.repeat([4, 1, 2], 20))
+    assert read_record(tmp_path / "lab.npz").segments == (0, 20, 40)
+    np.savez(tmp_path / "bad.npz", x=x.ravel(), dt=0.2, segment=np.zeros(5))
+    with pytest.raises(HosidInputError, match="one integer label a sample"):
+        read_record(tmp_path / "bad.npz")
+
+
+def test_directory_and_non_archive(tmp_path):
+    (tmp_path / "d.csv").mkdir()
+    with pytest.raises(HosidInputError, match="is a directory"):
+        read_record(tmp_path / "d.csv")
+    (tmp_path / "p.npz").write_bytes(b"\x80\x04not a zip at all")
+    with pytest.raises(HosidInputError, match=r"not an \.npz archive") as err:
+        read_record(tmp_path / "p.npz")
+    assert "pickle" not in str(err.value)

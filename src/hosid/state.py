@@ -7,7 +7,9 @@ the record's scales.  Velocity and acceleration are taken in the frequency domai
 :math:`\ddot x = \mathcal F^{-1}[-\omega^2\mathcal F x]` below the Nyquist frequency
 :math:`\omega_N = \pi/\Delta t`, after removing the straight line through the end
 points (its slope is added back to the velocity), so that the periodic extension does
-not ring through the record.
+not ring through the record.  A record in segments is differentiated segment by
+segment, and its blocks lie inside the segments (:mod:`hosid.spectra.blocks`): no
+statistic spans a gap.
 
 **The velocity above the band.**  A sampled record holds no velocity power above
 :math:`\omega_N`, and its aliases put some back.  For an excitation spectrum
@@ -40,7 +42,7 @@ import numpy as np
 from .errors import HosidInputError
 from .model.terms import Scales
 from .record import Record
-from .spectra.blocks import BlockLayout, block_fft, choose_layout
+from .spectra.blocks import BlockLayout, block_fft, choose_layout, windowed_fft
 from .spectra.windows import Window, get_window
 
 __all__ = ["RecordState", "derivatives", "velocity_deficit"]
@@ -120,13 +122,18 @@ class RecordState:
         xc = record.x - offset
         noise = None
         if denoise:
-            xc, noise = noise_floor(xc, record.dt)
-        v, a = derivatives(xc, record.dt)
+            xc, noise = noise_floor(xc, record.dt, bounds=record.bounds)
+        v, a = (
+            np.concatenate(d)
+            for d in zip(*(derivatives(p, record.dt) for p in record.split(xc)), strict=True)
+        )
         sigma_x, sigma_v = float(np.std(xc)), float(np.std(v))
         if not (sigma_x > 0 and sigma_v > 0 and math.isfinite(sigma_v / sigma_x)):
             raise HosidInputError("the record is constant: it has no response to identify")
         omega_n = sigma_v / sigma_x
-        layout = choose_layout(record.n, record.dt, omega_n, block_seconds=block_seconds)
+        layout = choose_layout(
+            record.n, record.dt, omega_n, block_seconds=block_seconds, bounds=record.bounds
+        )
         win = get_window(window)
         scales = Scales(sigma_x, sigma_v, _level(a, layout, win, omega_n), record.dt)
         x = xc if centred else xc + offset
@@ -158,8 +165,18 @@ class RecordState:
     @cached_property
     def blocks(self) -> dict[str, np.ndarray]:
         """``x``, ``v``, ``a`` cut into blocks, each ``(B, M)``."""
-        L = self.layout
-        return {k: getattr(self, k)[: L.n_used].reshape(L.B, L.M) for k in ("x", "v", "a")}
+        return {k: self.layout.take(getattr(self, k)) for k in ("x", "v", "a")}
+
+    @cached_property
+    def block_edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """First sample of every block and the sample one block length later (the next
+        block's first), held inside the block's segment: the ends of the boundary terms
+        of the generator identities.
+        """
+        first = self.layout.offsets
+        stops = np.array([b for _, b in self.record.bounds])
+        seg = np.searchsorted(np.array(self.record.segments), first, side="right") - 1
+        return first, np.minimum(first + self.layout.M, stops[seg] - 1)
 
     def block_fft(self, key, signal_fn, bins: np.ndarray) -> np.ndarray:
         """Windowed block FFT of a signal built from the blocks, cached under ``key``.
@@ -168,8 +185,8 @@ class RecordState:
         """
         full = (key, bins.tobytes())
         if full not in self._fft_cache:
-            y = signal_fn(self.blocks).reshape(-1)
-            self._fft_cache[full] = block_fft(y, self.layout, self.window, bins)
+            y = signal_fn(self.blocks)
+            self._fft_cache[full] = windowed_fft(y, self.dt, self.window, bins)
         return self._fft_cache[full]
 
     def periodogram(self, key: str, bins: np.ndarray) -> np.ndarray:
@@ -193,7 +210,7 @@ class RecordState:
         }
 
 
-def noise_floor(x: np.ndarray, dt: float) -> tuple[np.ndarray, dict]:
+def noise_floor(x: np.ndarray, dt: float, *, bounds=None) -> tuple[np.ndarray, dict]:
     r"""Remove white measurement noise from a displacement record (Wiener filter).
 
     The whole-record periodogram is fitted on :math:`[3\omega_e, 0.9\,\omega_N]`
@@ -208,42 +225,50 @@ def noise_floor(x: np.ndarray, dt: float) -> tuple[np.ndarray, dict]:
     G^2N\omega^2]\,d\omega`, is added to the restoration.
 
     Returns the filtered record and ``{"A", "N", "sd", "extra_deficit"}`` (``sd`` is
-    :math:`\sqrt{2\pi N/\Delta t}`, the noise standard deviation).
+    :math:`\sqrt{2\pi N/\Delta t}`, the noise standard deviation).  A record in
+    segments (``bounds``, :attr:`hosid.record.Record.bounds`) is filtered segment by
+    segment, with one fit to the chunks of all their periodograms.
     """
     from scipy.optimize import nnls
 
-    n = x.size
-    F = np.fft.rfft(x)
-    w = 2.0 * np.pi * np.fft.rfftfreq(n, dt)
-    P = np.abs(F) ** 2 * dt / (2.0 * np.pi * n)
-    v, _ = derivatives(x, dt)
+    pieces = [x[a:b] for a, b in (bounds or [(0, x.size)])]
+    v = np.concatenate([derivatives(p, dt)[0] for p in pieces])
     we = float(np.std(v) / np.std(x))
     wN = math.pi / dt
-    sel = (w >= 3.0 * we) & (w <= 0.9 * wN)
-    if sel.sum() < 16:
+    chunks = []
+    for p in pieces:
+        F = np.fft.rfft(p)
+        w = 2.0 * np.pi * np.fft.rfftfreq(p.size, dt)
+        P = np.abs(F) ** 2 * dt / (2.0 * np.pi * p.size)
+        # average the periodogram over chunks of 64 neighbouring bins before the fit
+        k = np.flatnonzero((w >= 3.0 * we) & (w <= 0.9 * wN))
+        width = 64 if k.size >= 256 else 1
+        k = k[: (k.size // width) * width].reshape(-1, width)
+        chunks.append((P[k].mean(axis=1), w[k].mean(axis=1)))
+    Ps, ws = (np.concatenate(c) for c in zip(*chunks, strict=True))
+    if Ps.size < 16:
         raise HosidInputError(
             "measurement_noise needs a spectral tail above 3 w_n: the sampling is too coarse"
         )
-    # average the periodogram over chunks of 64 neighbouring bins before the fit
-    k = np.flatnonzero(sel)
-    width = 64 if k.size >= 256 else 1
-    k = k[: (k.size // width) * width].reshape(-1, width)
-    Ps, ws = P[k].mean(axis=1), w[k].mean(axis=1)
     tail = sum((ws + 2 * j * wN) ** -4.0 for j in range(-20, 21))  # the folded w^-4 tail
     coef, _ = nnls(np.stack([tail / Ps, 1.0 / Ps], axis=1), np.ones_like(Ps))
     A, N = float(coef[0]), float(coef[1])
     info = {"A": A, "N": N, "sd": math.sqrt(2 * math.pi * N / dt), "extra_deficit": 0.0}
     if N <= 0 or A <= 0:
         return x, info
-    G = np.ones_like(w)
-    hf = w >= 3.0 * we
-    G[hf] = A * w[hf] ** -4.0 / (A * w[hf] ** -4.0 + N)
     wg = np.linspace(3.0 * we, wN, 4001)
     g = A * wg**-4.0 / (A * wg**-4.0 + N)
     info["extra_deficit"] = float(
         2.0 * np.trapezoid((1 - g**2) * A * wg**-2.0 - g**2 * N * wg**2, wg)
     )
-    return np.fft.irfft(F * G, n), info
+    out = []
+    for p in pieces:
+        w = 2.0 * np.pi * np.fft.rfftfreq(p.size, dt)
+        G = np.ones_like(w)
+        hf = w >= 3.0 * we
+        G[hf] = A * w[hf] ** -4.0 / (A * w[hf] ** -4.0 + N)
+        out.append(np.fft.irfft(np.fft.rfft(p) * G, p.size))
+    return np.concatenate(out), info
 
 
 def _level(a: np.ndarray, layout: BlockLayout, window: Window, omega_n: float) -> float:

@@ -76,8 +76,7 @@ class Identities:
         terms = model.drift_terms
         rows = [j for j, t in enumerate(terms) if self.which == "all" or t.variable != "v"]
         L = state.layout
-        nxt = np.minimum(np.arange(1, L.B + 1) * L.M, state.record.n - 1)
-        first = np.arange(L.B) * L.M
+        first, nxt = state.block_edges
 
         sv = state.scales.sigma_v
 

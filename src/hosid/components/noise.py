@@ -44,7 +44,7 @@ class NoiseFloor:
             raise ValueError("measurement_noise needs a spectral tail: the sampling is too coarse")
         omega = bins * L.d_omega
         raw = state.record.x - state.offset
-        Y = state.block_fft(("raw x",), lambda b: raw[: L.n_used].reshape(L.B, L.M), bins)
+        Y = state.block_fft(("raw x",), lambda b: L.take(raw), bins)
         P = (Y.real**2 + Y.imag**2) / (2 * math.pi * L.T * state.window.k2)  # (B, K)
         exc = Excitation(model, pilot, s.sigma_v, s.sigma_x)
         c, k = exc.linear
