@@ -15,6 +15,9 @@ r"""Record checks before any estimation: can hosid describe this record at all.
 ``offset``
     The record's mean: removed before the fit (or modelled, with the
     ``excitation_mean`` or ``quadratic_stiffness`` terms); reported in the record's unit.
+    For a record in segments, the root mean square of the segments' means about their
+    common mean in standard errors, :math:`\sqrt{2\pi S_x(0)/T_i}` (about 1 when the
+    segments come from one stationary response).
 ``trend``
     The least-squares slope over each segment in units of its standard error under
     stationarity, :math:`z = \hat b/\mathrm{se}(\hat b)`,
@@ -67,6 +70,7 @@ __all__ = ["THRESHOLDS", "check_record", "record_statistics", "reject_failures"]
 THRESHOLDS: dict[str, tuple[float | None, float | None]] = {
     "sampling": (0.30, 0.45),  # omega_e / omega_N
     "trend": (6.0, None),  # |z| of the slope
+    "levels": (4.0, None),  # rms z of the segments' means about their common mean
     "clipping": (0.001, 0.01),  # share of samples at the extremes
     "quantisation": (0.01, 0.5),  # quantisation noise's share of the velocity variance
     "flatness": (None, 0.05),  # mean level over [0.5, 0.9] omega_N / peak level
@@ -83,11 +87,6 @@ def _status(name: str, value: float) -> str:
     if warn is not None and value >= warn:
         return "warn"
     return "pass"
-
-
-def _segments(record: Record) -> list[np.ndarray]:
-    """The record's contiguous pieces (one for a record without gaps)."""
-    return [record.x]
 
 
 def _spectra(pieces: Sequence[np.ndarray], dt: float, nperseg: int):
@@ -156,9 +155,9 @@ def _line_share(pieces: Sequence[np.ndarray]) -> float:
 
 
 def _wander(pieces: Sequence[np.ndarray], block: int, var: float) -> float:
-    """Variance of block means over the variance (module docstring)."""
+    """Variance of block means (about their segment's mean) over the variance."""
     means = [
-        y[: (y.size // block) * block].reshape(-1, block).mean(axis=1)
+        y[: (y.size // block) * block].reshape(-1, block).mean(axis=1) - y.mean()
         for y in pieces
         if y.size >= 2 * block
     ]
@@ -168,17 +167,32 @@ def _wander(pieces: Sequence[np.ndarray], block: int, var: float) -> float:
     return float(np.var(m) / var) if var > 0 else 0.0
 
 
+def _levels(pieces: Sequence[np.ndarray], dt: float, S0_x: float) -> float:
+    r"""Root mean square of the segments' means about their common mean, in standard
+    errors :math:`\sqrt{2\pi S_x(0)/T_i}` (about 1 for segments of one stationary
+    response; 0 for a record of one segment).
+    """
+    if len(pieces) < 2 or S0_x <= 0:
+        return 0.0
+    m = np.array([y.mean() for y in pieces])
+    w = np.array([y.size * dt for y in pieces]) / (2.0 * math.pi * S0_x)  # 1 / se^2
+    centre = float(np.sum(w * m) / np.sum(w))
+    return math.sqrt(float(np.mean(w * (m - centre) ** 2)))
+
+
 def record_statistics(record: Record) -> dict[str, float]:
     """The numbers the checks judge (module docstring), in the record's units.
 
-    Keys: ``n``, ``duration``, ``mean``, ``sd``, ``omega_e``, ``omega_nyquist``, ``sampling``,
-    ``needed_duration``, ``trend_z``, ``clipped_share``, ``grid_step`` (0 for continuous
-    values), ``quantisation_share``, ``flatness``, ``variation``, ``line_share``, ``wander``; for a
-    constant record only the first four and ``constant = 1``.
+    Keys: ``n``, ``duration``, ``mean``, ``sd`` (within segments), ``omega_e``,
+    ``omega_nyquist``, ``sampling``, ``needed_duration``, ``used_duration``, ``trend_z``,
+    ``levels_z``, ``clipped_share``, ``low``, ``high``, ``grid_step`` (0 for continuous
+    values), ``quantisation_share``, ``flatness``, ``variation``, ``line_share``,
+    ``wander``; for a constant record only the first four and ``constant = 1``.
     """
-    pieces = _segments(record)
+    pieces = record.split(record.x)  # no statistic spans a gap between segments
     x, dt = record.x, record.dt
-    mean, sd = float(np.mean(x)), float(np.std(x))
+    mean = float(np.mean(x))
+    sd = math.sqrt(sum(float(np.sum((y - y.mean()) ** 2)) for y in pieces) / x.size)
     wN = math.pi / dt
     out = {"n": float(record.n), "duration": record.duration, "mean": mean, "sd": sd}
     if not sd > 1e-12 * max(1.0, abs(mean)):
@@ -193,6 +207,7 @@ def record_statistics(record: Record) -> dict[str, float]:
     d = float(omega[1] - omega[0])
     we = math.sqrt(float(np.sum(omega**2 * S) / np.sum(S)))
     step = _grid_step(x) or 0.0
+    S_low = float(np.median(S[1:4])) if S.size > 4 else float(S[0])
     var_v = float(np.sum(omega**2 * S) * d * 2.0)
     peak = float(np.max(S[1:])) if S.size > 1 else float(S[0])
     high = (omega >= 0.5 * wN) & (omega <= 0.9 * wN)
@@ -207,7 +222,8 @@ def record_statistics(record: Record) -> dict[str, float]:
         "sampling": we / wN,
         "needed_duration": MIN_BLOCKS * MIN_PERIODS * 2.0 * math.pi / we,
         "used_duration": sum(y.size for y in pieces) * dt,
-        "trend_z": _trend_z(pieces, dt, float(np.median(S[1:4])) if S.size > 4 else float(S[0])),
+        "trend_z": _trend_z(pieces, dt, S_low),
+        "levels_z": _levels(pieces, dt, S_low),
         "clipped_share": float(np.mean(x <= lo + tol) + np.mean(x >= hi - tol)),
         "low": lo,
         "high": hi,
@@ -266,10 +282,16 @@ def check_record(record: Record, *, unit: str = "m") -> list[Check]:
         ),
         Check(
             "offset",
-            "pass",
+            _status("levels", st["levels_z"]),
             st["mean"],
             f"mean {st['mean']:.4g} {unit} ({abs(st['mean']) / sd:.3g} sd) removed before the "
-            "fit, or modelled by excitation_mean / quadratic_stiffness",
+            "fit, or modelled by excitation_mean / quadratic_stiffness"
+            + (
+                f"; the {record.n_segments} segments' means differ by {st['levels_z']:.2g} "
+                "standard errors (rms): different offsets or set-ups?"
+                if st["levels_z"] >= THRESHOLDS["levels"][0]
+                else ""
+            ),
         ),
         Check(
             "trend",

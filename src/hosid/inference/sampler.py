@@ -255,7 +255,9 @@ def _deferred_interrupt() -> Iterator[list]:
 
 
 def _taus(sampler, done: int) -> np.ndarray:
-    tau = sampler.get_autocorr_time(tol=0, discard=done // 5)
+    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)  # short runs, walkers that stuck
+        tau = sampler.get_autocorr_time(tol=0, discard=done // 5)
     return np.where(np.isfinite(tau), tau, max(done / 10, 1.0))
 
 

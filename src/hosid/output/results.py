@@ -95,18 +95,21 @@ def build_tree(
     dims.update({"theta_hat": ["param"], "laplace_cov": ["param", "param_"]})
     coords = {"omega": omega, "param": list(param_names), "param_": list(param_names)}
     obs = {k: v for k, v in observed_data.items() if k != "omega"}
-    tree = az.from_dict(
-        {
-            "posterior": dict(posterior),
-            "sample_stats": dict(sample_stats),
-            "log_likelihood": dict(log_likelihood),
-            "prior": dict(prior),
-            "observed_data": obs,
-            "constant_data": dict(constant_data),
-        },
-        coords=coords,
-        dims=dims,
-    )
+    with warnings.catch_warnings():
+        # emcee's walkers are the chains: a short run has more of them than draws
+        warnings.filterwarnings("ignore", message=".*chain dimension.*", category=UserWarning)
+        tree = az.from_dict(
+            {
+                "posterior": dict(posterior),
+                "sample_stats": dict(sample_stats),
+                "log_likelihood": dict(log_likelihood),
+                "prior": dict(prior),
+                "observed_data": obs,
+                "constant_data": dict(constant_data),
+            },
+            coords=coords,
+            dims=dims,
+        )
     if likelihood_map is not None:
         tree["likelihood_map"] = xr.DataTree(
             xr.Dataset(
