@@ -331,10 +331,14 @@ def check_record(record: Record, *, unit: str = "m") -> list[Check]:
             f"{100 * min(wand, 1.0):.0f} % of the variance)"
         )
     elif steady <= THRESHOLDS["variation"][1] or lines >= THRESHOLDS["line_share"][1]:
-        why = (
-            f"tones, not a random response: its spectral peak is steady from block to block "
-            f"(variation {steady:.2g}) or {100 * lines:.0f} % of its variance sits in 5 lines"
-        )
+        signs = []
+        if steady <= THRESHOLDS["variation"][1]:
+            signs.append(
+                f"its spectral peak is steady from block to block (variation {steady:.2g})"
+            )
+        if lines >= THRESHOLDS["line_share"][1]:
+            signs.append(f"{100 * lines:.0f} % of its variance sits in 5 spectral lines")
+        why = "tones, not a random response: " + " and ".join(signs)
     elif flat >= THRESHOLDS["flatness"][1]:
         why = f"its spectrum does not fall off above a resonance (flatness {flat:.2g})"
     closeness = max(

@@ -90,8 +90,8 @@ class ChainFile(emcee.backends.Backend):
             stored = stored.decode()
         if stored != self.signature:
             raise HosidInputError(
-                f"{self.path} holds a chain of another record or other settings; "
-                "remove it or choose another --backend"
+                f"{self.path} holds a chain of another record or other settings"
+                f"{_difference(stored, self.signature)}; remove it or choose another --backend"
             )
         if shape != (self.nwalkers, self.ndim):
             raise HosidInputError(f"{self.path} holds {shape[0]} walkers x {shape[1]} params")
@@ -135,3 +135,17 @@ class ChainFile(emcee.backends.Backend):
                 f"cannot store the chain in {self.path}: {exc.strerror or exc}"
             ) from None
         return self.path
+
+
+def _difference(stored, current: str) -> str:
+    """`` (record: 'a1b2' there, 'c3d4' here)``: what differs between two signatures."""
+    try:
+        old, new = json.loads(stored), json.loads(current)
+    except (TypeError, ValueError):
+        return ""
+    if not isinstance(old, dict):
+        return ""
+    keys = [k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
+    keys.sort(key=lambda k: k != "record")  # the record first
+    parts = [f"{k}: {old.get(k)!r} there, {new.get(k)!r} here" for k in keys[:3]]
+    return f" ({'; '.join(parts)})" if parts else ""
