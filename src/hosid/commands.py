@@ -263,20 +263,27 @@ def _fit_into(out: Path, record, *, command: str, backend: str | None, extra=Non
     """
     from hosid.inference import fit
     from hosid.output.files import locked_dir, staged
+    from hosid.progress import Stages
 
-    with locked_dir(out, command=command):
-        chain = Path(backend) if backend else out / CHAIN_NAME
-        try:
-            tree = fit(record, backend=chain, **options)
-        except HosidInputError as exc:
-            if backend or "holds a chain of another" not in str(exc):
-                raise
-            chain.unlink()  # an interrupted run with other settings: start afresh
-            tree = fit(record, backend=chain, **options)
-        with staged(out, command=command) as stage:
-            names = _write_fit(tree, stage) + (extra(stage) if extra else [])
-        if not backend:
-            chain.unlink(missing_ok=True)
+    stages = Stages("hosid fit", enabled=bool(options.pop("progress", True)))
+    try:
+        with locked_dir(out, command=command):
+            chain = Path(backend) if backend else out / CHAIN_NAME
+            stages.stage("estimate")
+            try:
+                tree = fit(record, backend=chain, progress=stages, **options)
+            except HosidInputError as exc:
+                if backend or "holds a chain of another" not in str(exc):
+                    raise
+                chain.unlink()  # an interrupted run with other settings: start afresh
+                tree = fit(record, backend=chain, progress=stages, **options)
+            stages.stage("report")
+            with staged(out, command=command) as stage:
+                names = _write_fit(tree, stage) + (extra(stage) if extra else [])
+            if not backend:
+                chain.unlink(missing_ok=True)
+    finally:
+        stages.close()
     _print_fit(json.loads((out / "summary.json").read_text(encoding="utf-8")))
     print("wrote " + ", ".join(str(out / n) for n in names))
     return 0

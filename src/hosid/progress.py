@@ -1,15 +1,16 @@
 """The one progress bar of a long command (:mod:`tqdm`).
 
-A command shows one labelled bar on stderr, with the stage it is in; it is silent with
-``--no-progress`` (``enabled=False``) and whenever stderr is not a terminal (a pipe, a
-log file, a batch worker).
+A command shows one labelled bar on stderr whose label names the stage it is in
+(``hosid fit: sampling``, ``hosid fit: report``); it is silent with ``--no-progress``
+(``enabled=False``) and whenever stderr is not a terminal (a pipe, a log file, a batch
+worker).
 """
 
 from __future__ import annotations
 
 import sys
 
-__all__ = ["bar"]
+__all__ = ["Stages", "bar"]
 
 
 def bar(
@@ -32,3 +33,33 @@ def bar(
         file=sys.stderr,
         disable=None if enabled else True,  # None: off when stderr is not a terminal
     )
+
+
+class Stages:
+    """One bar for a whole command; :meth:`stage` relabels and resets it.
+
+    Examples
+    --------
+    >>> stages = Stages("hosid fit", enabled=False)
+    >>> b = stages.stage("sampling", total=100, unit="step")
+    >>> stages.close()
+    """
+
+    def __init__(self, command: str, *, enabled: bool = True):
+        self.command = command
+        self.bar = bar(command, enabled=enabled)
+
+    def stage(self, name: str, *, total: float | None = None, initial: int = 0, unit: str = "it"):
+        """Switch to stage ``name``; returns the bar, to ``update``."""
+        b = self.bar
+        b.set_description(f"{self.command}: {name}", refresh=False)
+        b.unit = unit
+        b.reset(total=total)
+        b.total = total  # reset() keeps the old total when given None
+        if initial:
+            b.update(initial)
+        return b
+
+    def close(self) -> None:
+        """Remove the bar."""
+        self.bar.close()

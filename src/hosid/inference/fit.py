@@ -30,6 +30,7 @@ from ..errors import HosidInputError
 from ..model.model import Model
 from ..model.priors import PriorSet
 from ..output.results import build_tree
+from ..progress import Stages
 from ..record import Record
 from ..verdicts import Check, convergence
 from . import sampler as S
@@ -62,7 +63,7 @@ def fit(
     n_steps: int | None = None,
     max_steps: int = 20000,
     seed: int | np.random.Generator | None = None,
-    progress: bool = True,
+    progress: bool | Stages = True,
     backend: str | Path | None = None,
     truths: Mapping[str, float] | None = None,
     with_map: bool = True,
@@ -97,8 +98,8 @@ def fit(
         Ensemble size; a fixed number of steps, or the stop rule's limit.
     seed : int or Generator, optional
         The only source of randomness (walkers, moves, prior draws).
-    progress : bool
-        One labelled progress bar.
+    progress : bool or Stages
+        One labelled progress bar (a command passes its :class:`hosid.progress.Stages`).
     backend : path, optional
         HDF5 chain to store (after every chunk of steps and on Ctrl-C) or resume (same
         record and settings only; :class:`hosid.inference.chains.ChainFile`).
@@ -207,7 +208,7 @@ def fit(
         mirror=damping if not constrained else (),
         kde=kde,
         backend=be,
-        progress="hosid fit: sampling" if progress else False,
+        progress=progress if isinstance(progress, Stages) else bool(progress) and "sampling",
     )
     timings["sampling"] = time.perf_counter() - t0 - sum(timings.values())
 

@@ -37,6 +37,7 @@ import emcee
 import numpy as np
 
 from ..errors import HosidInputError
+from ..progress import Stages
 from ..progress import bar as progress_bar
 
 __all__ = ["ESS_STOP", "RHAT_STOP", "Chain", "diagnostics", "run"]
@@ -141,8 +142,9 @@ def run(
         A chain to continue (``backend.iteration > 0``) or to fill; a
         :class:`hosid.inference.chains.ChainFile` is saved after every chunk of
         :data:`CHUNK` steps and when the run is interrupted (Ctrl-C).
-    progress : bool or str
-        tqdm progress bar (a string is its label).
+    progress : bool, str or Stages
+        tqdm progress bar (a string is its label; a command's
+        :class:`~hosid.progress.Stages` shows the sampling as one of its stages).
     """
     p = len(modes[0])
     logs = np.zeros(p, dtype=bool)
@@ -176,11 +178,13 @@ def run(
     state = None
     if sampler.iteration == 0:
         state = _start(target, modes, cov, logs, rng, n_walkers)
-    bar = None
-    if progress:
+    bar, own = None, False
+    total = int(n_steps) if n_steps is not None else None
+    if isinstance(progress, Stages):
+        bar = progress.stage("sampling", total=total, initial=sampler.iteration, unit="step")
+    elif progress:
         label = progress if isinstance(progress, str) else "sampling"
-        total = int(n_steps) if n_steps is not None else None
-        bar = progress_bar(label, total=total, initial=sampler.iteration, unit="step")
+        bar, own = progress_bar(label, total=total, initial=sampler.iteration, unit="step"), True
 
     def advance(start, steps):
         if steps <= 0:
@@ -217,7 +221,7 @@ def run(
             backend.save()  # what was sampled is kept for the resume
         raise
     finally:
-        if bar is not None:
+        if own:
             bar.close()
     done = sampler.iteration
     burn = _burn(sampler, done)
