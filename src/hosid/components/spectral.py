@@ -24,7 +24,10 @@ covariance comes from the delete-one-block jackknife
 ordinates as eq (50) does, :math:`(\hat V^a - k_2S_0)^2`, i.e. by :math:`(S_0L)^2`.
 
 The default band runs from bin 2 (the Hann window leaks a mean force into bins 0 and 1)
-to :math:`\min(6\,\omega_n, \omega_N/2)`.
+to :math:`\min(6\,\omega_n, \omega_N/2)`, kept below where the record's response
+spectrum says the model stops holding (:mod:`hosid.spectra.response`): below 0.9 of the
+excitation's edge, and below half the frequency where the response falls into the noise
+floor (where the floor's acceleration is a sixteenth of the force level).
 """
 
 from __future__ import annotations
@@ -48,9 +51,12 @@ def default_band(state: RecordState) -> tuple[float, float]:
     r"""``(omega_lo, omega_hi)`` of the J2 band (module docstring), rad/s; below the
     Wiener filter (:math:`3\omega_n`) when the record was denoised.
     """
-    s = state.scales
+    s, sp = state.scales, state.spectrum
     factor = 3.0 if state.noise is not None else BAND_FACTOR
-    return 0.0, min(factor * s.omega_n, 0.5 * s.omega_nyquist)
+    hi = min(factor * s.omega_n, 0.5 * s.omega_nyquist, 0.5 * sp.floor_edge)
+    if sp.edge is not None:
+        hi = min(hi, 0.9 * sp.edge[0])
+    return 0.0, hi
 
 
 @dataclass(frozen=True)
