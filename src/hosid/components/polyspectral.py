@@ -47,7 +47,8 @@ from ..spectra.domains import trispectral_domain
 from ..spectra.windows import get_window
 from ..state import RecordState
 from ._kernels import contract, products
-from .base import Excitation, Moments, feature_ffts, restoration, u_pseudovalues
+from .base import Moments, feature_ffts, restoration, u_pseudovalues
+from .excitation import Excitation
 from .spectral import default_band
 
 __all__ = ["J4", "null_variance"]
@@ -158,8 +159,8 @@ class J4:
 
         # directions and frozen per-block weights d_tbj
         dirs = list(damp) + ([exc.i_S0] if self.kind == "A" else [])
-        if self.kind == "A" and exc.i_wc is not None:
-            dirs.append(exc.i_wc)
+        if self.kind == "A":
+            dirs += [i for i, _ in exc.inverse_factors()]
         G0 = gauss(level(th0))
         d = np.empty((B, dom.shape[0], len(dirs)), dtype=complex)
         for a, i in enumerate(dirs):
