@@ -52,6 +52,7 @@ def test_candidates_are_spelled_as_in_notes():
 def test_term_kinds_and_parameters():
     kinds = {name: t.kind for name, t in TERMS.items()}
     assert kinds["excitation_level"] == kinds["coloured_excitation"] == "excitation"
+    assert kinds["band_limited_excitation"] == "excitation"
     assert kinds["measurement_noise"] == "observation"
     assert set(DRIFT) == {
         "linear_damping",
@@ -63,7 +64,9 @@ def test_term_kinds_and_parameters():
         "excitation_mean",
     }
     params = [p for t in TERMS.values() for p in t.params]
-    assert params == ["a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "noise_sd"]
+    assert params == [
+        "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "noise_sd"
+    ]  # fmt: skip
     for t in TERMS.values():
         assert t.latex and type(t).__doc__
 
@@ -200,7 +203,9 @@ def test_spec_strings_lists_aliases_and_canonical_order():
         "excitation_mean"
     )
     full = Model.from_spec(list(TERMS))
-    assert full.param_names == ("a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "noise_sd")
+    assert full.param_names == (
+        "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "noise_sd"
+    )  # fmt: skip
     assert Model.from_spec(full) is full
 
 
@@ -327,6 +332,8 @@ def test_default_priors_hold_the_paper_values_and_the_null_effects():
     assert priors.names == model.param_names
     assert all(isinstance(priors[n], Prior) for n in priors)
     truth = {**PAPER_PARAMS, "b2": 0.0, "mu": 0.0, "m": 0.0, "noise_sd": 0.0, "wc": 3.0}
+    truth["wb"] = math.pi / PAPER_SCALES.dt  # no edge seen: U(w_N / 2, 2 w_N)
+    truth["rolloff"] = 0.0  # a flat band
     for name, value in truth.items():
         assert np.isfinite(priors[name].ln_prob(value)), name
     assert np.isfinite(priors.ln_prob(model.vector(truth)))

@@ -42,7 +42,8 @@ import numpy as np
 from .errors import HosidInputError
 from .model.terms import Scales
 from .record import Record
-from .spectra.blocks import BlockLayout, block_fft, choose_layout, windowed_fft
+from .spectra.blocks import BlockLayout, block_fft, choose_layout, distinct_bounds, windowed_fft
+from .spectra.response import ResponseSpectrum, response_spectrum
 from .spectra.windows import Window, get_window
 
 __all__ = ["RecordState", "derivatives", "velocity_deficit"]
@@ -96,8 +97,10 @@ class RecordState:
     layout: BlockLayout
     window: Window
     scales: Scales
+    spectrum: ResponseSpectrum
     centred: bool = True
     noise: dict | None = None  # the noise floor and the filter's velocity loss, if denoised
+    repeats: list | None = None  # per segment, (lag, r) if it repeats itself, else None
     _fft_cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -110,8 +113,9 @@ class RecordState:
         centred: bool = True,
         denoise: bool = False,
     ) -> RecordState:
-        """Derivatives, scales and block layout of ``record``; with ``denoise`` the
-        displacement is Wiener-filtered first (:func:`noise_floor`).
+        """Derivatives, scales, response spectrum (:mod:`hosid.spectra.response`) and
+        block layout of ``record``; with ``denoise`` the displacement is Wiener-filtered
+        first (:func:`noise_floor`).
 
         Raises
         ------
@@ -131,13 +135,22 @@ class RecordState:
         if not (sigma_x > 0 and sigma_v > 0 and math.isfinite(sigma_v / sigma_x)):
             raise HosidInputError("the record is constant: it has no response to identify")
         omega_n = sigma_v / sigma_x
+        spectrum = response_spectrum(xc, record.dt, sigma_v=sigma_v, bounds=record.bounds)
+        distinct, repeats = distinct_bounds(xc, record.bounds)
         layout = choose_layout(
-            record.n, record.dt, omega_n, block_seconds=block_seconds, bounds=record.bounds
+            sum(b - a for a, b in distinct),
+            record.dt,
+            omega_n,
+            block_seconds=block_seconds,
+            bounds=distinct,
+            bandwidth=spectrum.bandwidth,
         )
         win = get_window(window)
-        scales = Scales(sigma_x, sigma_v, _level(a, layout, win, omega_n), record.dt)
+        top = spectrum.edge[0] if spectrum.edge else None
+        level = _level(a, layout, win, omega_n, top)
+        scales = Scales(sigma_x, sigma_v, level, record.dt, spectrum.edge)
         x = xc if centred else xc + offset
-        return cls(record, x, offset, v, a, layout, win, scales, centred, noise)
+        return cls(record, x, offset, v, a, layout, win, scales, spectrum, centred, noise, repeats)
 
     def recentred(self, centred: bool) -> RecordState:
         """The same state with the displacement centred or as recorded."""
@@ -153,8 +166,24 @@ class RecordState:
             self.layout,
             self.window,
             self.scales,
+            self.spectrum,
             centred,
             self.noise,
+            self.repeats,
+        )
+
+    def repeat_note(self) -> str | None:
+        """One sentence on the segments that repeat themselves, or ``None``."""
+        found = [r for r in (self.repeats or []) if r is not None]
+        if not found:
+            return None
+        lags = sorted({lag for lag, _ in found})
+        sign = "antiperiodic (an odd periodic input)" if found[0][1] < 0 else "periodic"
+        return (
+            f"{len(found)} of {len(self.repeats)} segments repeat themselves after "
+            f"{', '.join(map(str, lags))} samples (autocorrelation "
+            f"{min(r for _, r in found):+.4f} to {max(r for _, r in found):+.4f}: {sign}); "
+            "blocks are taken before the repeat only"
         )
 
     @property
@@ -206,7 +235,10 @@ class RecordState:
             "offset": self.offset,
             "centred": self.centred,
             **self.layout.as_dict(),
+            "segments": self.record.n_segments,
+            "repeating_segments": self.repeat_note(),
             "window": self.window.name,
+            **self.spectrum.describe(),
         }
 
 
@@ -271,16 +303,16 @@ def noise_floor(x: np.ndarray, dt: float, *, bounds=None) -> tuple[np.ndarray, d
     return np.concatenate(out), info
 
 
-def _level(a: np.ndarray, layout: BlockLayout, window: Window, omega_n: float) -> float:
+def _level(
+    a: np.ndarray, layout: BlockLayout, window: Window, omega_n: float, edge: float | None
+) -> float:
     r"""A rough excitation level: the median acceleration periodogram on
-    :math:`[3\omega_n, 5\omega_n]` (clipped to half the Nyquist frequency), where the
-    response acceleration follows the force; a scale for priors, not an estimator.
+    :math:`[3\omega_n, 5\omega_n]` (clipped to half the Nyquist frequency and below the
+    excitation's edge), where the response acceleration follows the force; a scale for
+    priors, not an estimator.
     """
-    bins = layout.bins(
-        min(3 * omega_n, 0.25 * math.pi / layout.dt),
-        min(5 * omega_n, 0.5 * math.pi / layout.dt),
-        k_min=2,
-    )
+    top = 0.5 * math.pi / layout.dt if edge is None else min(0.5 * math.pi / layout.dt, edge)
+    bins = layout.bins(min(3 * omega_n, 0.5 * top), min(5 * omega_n, top), k_min=2)
     if bins.size == 0:
         bins = np.arange(2, layout.M // 2)
     Y = block_fft(a, layout, window, bins)

@@ -12,7 +12,7 @@ calibrated quasi-likelihood
 .. math:: \ell(\theta) = -\frac{B}{2}\,\bar m(\theta)^{\mathsf T}\,\hat\Sigma^{-1}\,
     \bar m(\theta), \qquad \hat\Sigma = \widehat{\mathrm{Cov}}(u_b).
 
-Shared here: the excitation shape and effective level of a model, the velocity
+Shared here (with the excitation of :mod:`hosid.components.excitation`): the velocity
 restoration :math:`s^2` of :mod:`hosid.state`, and the block transforms of the
 inferred force's features (eq 45), :math:`Y_0 = \ddot x`, :math:`Y_k = \phi_k` with
 velocity features restored as :math:`\phi + \tfrac12 s^2\phi''`.
@@ -29,8 +29,8 @@ from typing import Protocol
 import numpy as np
 
 from ..model.model import Model
-from ..model.terms import ColouredExcitation
-from ..state import RecordState, velocity_deficit
+from ..state import RecordState
+from .excitation import Excitation
 
 __all__ = [
     "Component",
@@ -83,69 +83,6 @@ class Component(Protocol):
         ...  # pragma: no cover
 
 
-class Excitation:
-    r"""The excitation of a model: spectral shape :math:`L(\omega;\theta)` and the
-    force terms of the generator identities, :math:`E[\dot xg] = \pi S_0\rho` and
-    :math:`E[xg] = \pi S_0\rho_x`.
-
-    For white noise :math:`L = 1`, :math:`\rho = 1`.  For coloured excitation
-    :math:`L = \omega_c^2/(\omega_c^2+\omega^2)` and, for jointly Gaussian velocity and
-    force (Stein's lemma), :math:`E[q'(\dot x)g] = E[q''(\dot x)]\,E[\dot x g]` with
-    :math:`E[\dot xg] = S_0\int\mathrm{Re}[i\omega H(\omega)]L(\omega)d\omega =
-    \pi S_0\rho` for the equivalent linear system :math:`H = 1/(k - \omega^2 + ic\omega)`
-    at the pilot; likewise :math:`E[h(x)g] = E[h'(x)]\,E[xg]`.
-    """
-
-    def __init__(self, model: Model, pilot: np.ndarray, sigma_v: float, sigma_x: float):
-        self.model = model
-        self.i_S0 = model.index("S0")
-        self.i_wc = model.index("wc") if model.has("wc") else None
-        c = max(float(model.equivalent_damping(pilot, sigma_v)), 1e-6)
-        k = (sigma_v / sigma_x) ** 2
-        self.linear = (c, k)  #: the equivalent linear system (damping c, stiffness k)
-
-    def S0(self, theta: np.ndarray) -> np.ndarray:
-        """The level :math:`S_0`."""
-        return np.asarray(theta)[..., self.i_S0]
-
-    def shape(self, omega: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        r""":math:`L(\omega)` for each ``theta`` (``(..., K)``)."""
-        if self.i_wc is None:
-            return np.ones(np.shape(theta)[:-1] + np.shape(omega))
-        wc = np.asarray(theta)[..., self.i_wc, None]
-        return ColouredExcitation.shape(omega, wc)
-
-    def rho(self, theta: np.ndarray) -> np.ndarray:
-        r"""Input-power ratio :math:`\rho = E[\dot xg]/\pi S_0` (1 for white noise)."""
-        th = np.asarray(theta)
-        if self.i_wc is None:
-            return np.ones(th.shape[:-1])
-        c, k = self.linear
-        wc = th[..., self.i_wc]
-        # (1/pi) int Re[i w H] wc^2/(wc^2 + w^2) dw for H = 1/(k - w^2 + icw)
-        # (the stationary Lyapunov solution of the system driven through the low-pass)
-        return wc**2 / (wc**2 + c * wc + k)
-
-    def rho_x(self, theta: np.ndarray) -> np.ndarray:
-        r""":math:`E[xg]/\pi S_0` (0 for white noise; :math:`\omega_c/(\omega_c^2 +
-        c\omega_c + k)` for the low-pass, same Lyapunov solution).
-        """
-        th = np.asarray(theta)
-        if self.i_wc is None:
-            return np.zeros(th.shape[:-1])
-        c, k = self.linear
-        wc = th[..., self.i_wc]
-        return wc / (wc**2 + c * wc + k)
-
-    def deficit(self, theta: np.ndarray, dt: float) -> float:
-        """The velocity restoration :math:`s^2` at one ``theta``."""
-        S0 = float(self.S0(theta))
-        if self.i_wc is None:
-            return float(velocity_deficit(S0, dt))
-        wc = float(np.asarray(theta)[self.i_wc])
-        return float(velocity_deficit(S0, dt, lambda w: ColouredExcitation.shape(w, wc)))
-
-
 def u_pseudovalues(d: np.ndarray, e: np.ndarray) -> np.ndarray:
     r"""Delete-one-block jackknife pseudo-values of the U-statistic of a spectral component.
 
@@ -170,10 +107,7 @@ def u_pseudovalues(d: np.ndarray, e: np.ndarray) -> np.ndarray:
     cross = np.einsum("btj,bt->bj", dc, e)  # a block's own pairs
     full = np.einsum("tj,t->j", D, E) - cross.sum(axis=0)  # all pairs r != r'
     loo = (
-        full[None]
-        - np.einsum("tj,bt->bj", D, e)
-        - np.einsum("btj,t->bj", dc, E)
-        + 2.0 * cross
+        full[None] - np.einsum("tj,bt->bj", D, e) - np.einsum("btj,t->bj", dc, E) + 2.0 * cross
     )  # the pairs without block b
     U = full.real / (B * (B - 1))
     U_loo = loo.real / ((B - 1) * (B - 2))

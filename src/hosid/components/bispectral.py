@@ -35,6 +35,7 @@ from ..spectra.windows import get_window
 from ..state import RecordState
 from ._kernels import contract3, products3
 from .base import Moments, feature_ffts, restoration, u_pseudovalues
+from .spectral import default_band
 
 __all__ = ["J3", "bispectral_null_variance"]
 
@@ -86,7 +87,7 @@ class J3:
         if self.form not in ("scaled", "printed"):
             raise ValueError(f"unknown form {self.form!r}: 'scaled' or 'printed'")
         L, sc = state.layout, state.scales
-        w_max = self.omega_max or min(BAND_FACTOR * sc.omega_n, 0.5 * sc.omega_nyquist)
+        w_max = self.omega_max or min(BAND_FACTOR * sc.omega_n, default_band(state)[1])
         k_max = math.floor(w_max / L.d_omega + 1e-9)
         dom = bispectral_domain(k_max)
         if dom.shape[0] < 3:

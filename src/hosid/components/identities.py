@@ -36,7 +36,7 @@ s^2h''}`, so :math:`\overline{\phi_j\phi_k}` gains
 :math:`\tfrac12s^2(\phi_j''\phi_k + 2\phi_j'\phi_k' + \phi_j\phi_k'')` (e.g.
 :math:`\overline{\dot x^4} + 6s^2\overline{\dot x^2}`).  Under coloured excitation
 :math:`D` becomes :math:`\pi S_0\rho(\omega_c)`
-(:class:`hosid.components.base.Excitation`), and the restoring identities gain the
+(:class:`hosid.components.excitation.Excitation`), and the restoring identities gain the
 force term :math:`\pi S_0\rho_x\overline{\phi_j'(x)}` (zero for white noise).
 """
 
@@ -49,7 +49,8 @@ import numpy as np
 
 from ..model.model import Model
 from ..state import RecordState
-from .base import Excitation, Moments, restoration
+from .base import Moments, restoration
+from .excitation import Excitation
 
 __all__ = ["Identities"]
 
@@ -66,7 +67,7 @@ class Identities:
     def statistics(self, state: RecordState, model: Model, pilot: np.ndarray):
         """Per-block ``(Q, const, e, ex)`` of the identities, their term indices and
         ``s2``: block ``b``'s equation ``j`` is ``const + Q @ theta_drift - pi S0 (rho e +
-        rho_x ex)`` (:class:`hosid.components.base.Excitation`).
+        rho_x ex)`` (:class:`hosid.components.excitation.Excitation`).
         """
         if self.which not in ("all", "restoring"):
             raise ValueError(f"unknown identity set {self.which!r}: 'all' or 'restoring'")
@@ -127,12 +128,14 @@ class Identities:
         def mean(theta):
             th = np.asarray(theta, dtype=float)
             D = (np.pi * exc.S0(th))[..., None]
-            force = D * (exc.rho(th)[..., None] * em + exc.rho_x(th)[..., None] * exm)
+            rho, rho_x = exc.powers(th)
+            force = D * (rho[..., None] * em + rho_x[..., None] * exm)
             return cm + th[..., :nd] @ Qm.T - force
 
         th0 = np.asarray(pilot, dtype=float)
         D0 = np.pi * float(exc.S0(th0))
-        force0 = D0 * (float(exc.rho(th0)) * e + float(exc.rho_x(th0)) * ex)
+        rho0, rho_x0 = (float(r) for r in exc.powers(th0))
+        force0 = D0 * (rho0 * e + rho_x0 * ex)
         per_block = const + np.einsum("bjk,k->bj", Q, th0[:nd]) - force0
         labels = tuple(f"identity {terms[j].params[0]}" for j in rows)
         return Moments(

@@ -3,8 +3,8 @@ r"""The noise floor of the measured displacement (``measurement_noise``).
 With :math:`y_n = x_n + \epsilon_n`, the spectrum of the record far above resonance is
 the response's tail plus the flat floor of the noise,
 
-.. math:: S_y(\omega) = S_0L(\omega)\sum_j|H(\omega + 2j\omega_N)|^2
-    + \frac{\sigma_\epsilon^2\Delta t}{2\pi},
+.. math:: S_y(\omega) = S_0\sum_jL(\omega_j)|H(\omega_j)|^2
+    + \frac{\sigma_\epsilon^2\Delta t}{2\pi}, \qquad \omega_j = \omega + 2j\omega_N,
 
 (the sum folds the response's tail into the band; :math:`H` is the equivalent linear
 system at the pilot).  On the tail bins :math:`\omega_k \in [4\omega_n, 0.9\,\omega_N]`
@@ -24,7 +24,8 @@ import numpy as np
 
 from ..model.model import Model
 from ..state import RecordState
-from .base import Excitation, Moments
+from .base import Moments
+from .excitation import Excitation
 
 __all__ = ["NoiseFloor"]
 
@@ -49,17 +50,15 @@ class NoiseFloor:
         exc = Excitation(model, pilot, s.sigma_v, s.sigma_x)
         c, k = exc.linear
         wN = s.omega_nyquist
-        H2 = sum(
-            1.0 / ((k - (omega + 2 * j * wN) ** 2) ** 2 + (c * (omega + 2 * j * wN)) ** 2)
-            for j in range(-20, 21)
-        )
+        alias = omega[:, None] + 2.0 * wN * np.arange(-20, 21)  # (K, J)
+        H2 = 1.0 / ((k - alias**2) ** 2 + (c * alias) ** 2)
         floor = state.dt / (2 * math.pi)
         th0 = np.asarray(pilot, dtype=float)
         sd0 = max(float(th0[i]), 0.05 * (state.noise or {}).get("sd", 0.0), 1e-6 * s.sigma_x)
 
         def level(th):
             th = np.asarray(th, dtype=float)
-            resp = exc.S0(th)[..., None] * exc.shape(omega, th) * H2
+            resp = exc.S0(th)[..., None] * np.sum(exc.shape(alias, th) * H2, axis=-1)
             return resp + floor * th[..., i, None] ** 2
 
         th_w = th0.copy()

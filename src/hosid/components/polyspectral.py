@@ -47,7 +47,9 @@ from ..spectra.domains import trispectral_domain
 from ..spectra.windows import get_window
 from ..state import RecordState
 from ._kernels import contract, products
-from .base import Excitation, Moments, feature_ffts, restoration, u_pseudovalues
+from .base import Moments, feature_ffts, restoration, u_pseudovalues
+from .excitation import Excitation
+from .spectral import default_band
 
 __all__ = ["J4", "null_variance"]
 
@@ -110,7 +112,7 @@ class J4:
         if self.kind not in ("A", "B") or self.form not in ("scaled", "printed"):
             raise ValueError(f"unknown J4 kind {self.kind!r} or form {self.form!r}")
         L, sc = state.layout, state.scales
-        w_max = self.omega_max or min(BAND_FACTOR * sc.omega_n, 0.5 * sc.omega_nyquist)
+        w_max = self.omega_max or min(BAND_FACTOR * sc.omega_n, default_band(state)[1])
         k_max = math.floor(w_max / L.d_omega + 1e-9)
         if k_max < 3:
             raise ValueError(f"the trispectral band up to {w_max:.3g} rad/s holds < 3 bins")
@@ -157,8 +159,8 @@ class J4:
 
         # directions and frozen per-block weights d_tbj
         dirs = list(damp) + ([exc.i_S0] if self.kind == "A" else [])
-        if self.kind == "A" and exc.i_wc is not None:
-            dirs.append(exc.i_wc)
+        if self.kind == "A":
+            dirs += [i for i, _ in exc.inverse_factors()]
         G0 = gauss(level(th0))
         d = np.empty((B, dom.shape[0], len(dirs)), dtype=complex)
         for a, i in enumerate(dirs):

@@ -24,7 +24,10 @@ covariance comes from the delete-one-block jackknife
 ordinates as eq (50) does, :math:`(\hat V^a - k_2S_0)^2`, i.e. by :math:`(S_0L)^2`.
 
 The default band runs from bin 2 (the Hann window leaks a mean force into bins 0 and 1)
-to :math:`\min(6\,\omega_n, \omega_N/2)`.
+to :math:`\min(6\,\omega_n, \omega_N/2)`, kept below where the record's response
+spectrum says the model stops holding (:mod:`hosid.spectra.response`): below 0.9 of the
+excitation's edge, and below half the frequency where the response falls into the noise
+floor (where the floor's acceleration is a sixteenth of the force level).
 """
 
 from __future__ import annotations
@@ -36,7 +39,8 @@ import numpy as np
 
 from ..model.model import Model
 from ..state import RecordState
-from .base import Excitation, Moments, feature_ffts, restoration, u_pseudovalues
+from .base import Moments, feature_ffts, restoration, u_pseudovalues
+from .excitation import Excitation
 
 __all__ = ["J2", "default_band"]
 
@@ -48,9 +52,12 @@ def default_band(state: RecordState) -> tuple[float, float]:
     r"""``(omega_lo, omega_hi)`` of the J2 band (module docstring), rad/s; below the
     Wiener filter (:math:`3\omega_n`) when the record was denoised.
     """
-    s = state.scales
+    s, sp = state.scales, state.spectrum
     factor = 3.0 if state.noise is not None else BAND_FACTOR
-    return 0.0, min(factor * s.omega_n, 0.5 * s.omega_nyquist)
+    hi = min(factor * s.omega_n, 0.5 * s.omega_nyquist, 0.5 * sp.floor_edge)
+    if sp.edge is not None:
+        hi = min(hi, 0.9 * sp.edge[0])
+    return 0.0, hi
 
 
 @dataclass(frozen=True)
@@ -91,9 +98,10 @@ class J2:
         lam0 = np.concatenate([[1.0], th0[:nd]])
         level0 = exc.S0(th0) * exc.shape(omega, th0)  # (K,)
         P0 = np.einsum("bkij,i,j->bk", R, lam0, lam0) / level0  # h + 1
-        # directions: drift coefficients, S0, wc
-        dirs = [*range(nd), exc.i_S0]
-        dirs += [exc.i_wc] if exc.i_wc is not None else []
+        # directions: drift coefficients, S0, the shape parameters (d h / d theta_i =
+        # -(h + 1) d log L / d theta_i)
+        shape_dirs = dict(exc.shape_derivatives(omega, th0))
+        dirs = [*range(nd), exc.i_S0, *shape_dirs]
         names = model.param_names
         w = np.empty((B, K, len(dirs)))
         RL = np.einsum("bkij,j->bki", R, lam0)
@@ -103,8 +111,7 @@ class J2:
             elif i == exc.i_S0:
                 w[:, :, a] = -P0 / exc.S0(th0)
             else:
-                wc = th0[i]
-                w[:, :, a] = -P0 * 2.0 * omega**2 / (wc * (wc**2 + omega**2))
+                w[:, :, a] = -P0 * shape_dirs[i]
         if self.form == "printed":
             w = w * (level0**2)[None, :, None]
         wbar = w.mean(axis=0)  # (K, J)
@@ -113,20 +120,17 @@ class J2:
         A = np.einsum("kj,kxy->kjxy", wbar, Rbar) - np.einsum("bkj,bkxy->kjxy", w, R) / B**2
         c = wbar - w.mean(axis=0) / B
         scale = B / ((B - 1) * K)
-        white = exc.i_wc is None
-        A_sum = A.sum(axis=0) if white else None
+        # sum_k q_k / L_k = sum_m a_m(theta) sum_k b_mk q_k: the bins summed once per basis
+        basis = exc.inverse_shape(omega)
+        A_m = np.stack([np.einsum("k,kjxy->jxy", b, A) for b, _ in basis])
         c_sum = c.sum(axis=0)
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
             lam = np.concatenate([np.ones((*th.shape[:-1], 1)), th[..., :nd]], axis=-1)
-            S0 = exc.S0(th)[..., None]
-            if white:
-                q = np.einsum("...x,jxy,...y->...j", lam, A_sum, lam)
-                return scale * (q / S0 - c_sum)
-            lev = S0 * exc.shape(omega, th)  # (..., K)
-            q = np.einsum("...x,kjxy,...y->...kj", lam, A, lam)
-            return scale * (np.sum(q / lev[..., None], axis=-2) - c_sum)
+            a = np.stack([fn(th) for _, fn in basis], axis=-1)  # (..., m)
+            q = np.einsum("...x,mjxy,...y->...mj", lam, A_m, lam)
+            return scale * (np.einsum("...m,...mj->...j", a, q) / exc.S0(th)[..., None] - c_sum)
 
         # the statistic's projection on the blocks (its other half, w_b times the
         # population residual, vanishes at the solution; the sample residual is noise)

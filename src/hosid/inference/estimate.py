@@ -12,6 +12,12 @@ r"""Record -> state -> components -> calibrated quasi-likelihood and its mode.
 :mod:`hosid.inference.calibrate` and emcee (:mod:`hosid.inference.sampler`), and
 returns an arviz ``DataTree`` (:mod:`hosid.output.results`).
 
+The excitation follows the record (:func:`excitation_for`): when the record's
+acceleration spectrum shows that the excitation stops below the Nyquist frequency
+(:mod:`hosid.spectra.response`), the model gets ``band_limited_excitation`` (the edge
+:math:`\omega_b` and a roll-off :math:`\beta` of the force within its band), unless
+``band_limit=False``; the estimate's ``notes`` say so.
+
 Component sets (``cost``; the restoring identities are the paper's moment method, J4
 gives equations along the damping and :math:`S_0` only):
 
@@ -30,7 +36,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -53,6 +59,7 @@ __all__ = [
     "Estimate",
     "components_for",
     "estimate",
+    "excitation_for",
     "likelihood_map",
     "log_params",
     "prepare_state",
@@ -110,6 +117,24 @@ def prepare_state(
     )
 
 
+def excitation_for(
+    state: RecordState, model: Model, *, band_limit: bool = True
+) -> tuple[Model, list[str]]:
+    """The model with the excitation terms the record's spectrum calls for (module
+    docstring), and the sentences that say what was found and done.
+    """
+    notes = [state.spectrum.summary()]
+    if state.repeat_note():
+        notes.append(state.repeat_note())
+    if band_limit and state.spectrum.band_limited and not model.has("wb"):
+        model = model.with_term("band_limited_excitation")
+        notes.append(
+            "the excitation stops below the Nyquist frequency: band_limited_excitation added "
+            "to the model (its edge wb and its roll-off within the band)"
+        )
+    return model, notes
+
+
 @dataclass
 class Estimate:
     """The mode of a quasi-likelihood and what it was built from."""
@@ -122,7 +147,8 @@ class Estimate:
     sigma_v: float  # velocity sd with the restoration (eq 65)
     test: dict
     pilot: np.ndarray
-    checks: list[Check] = dataclasses.field(default_factory=list)  # hosid.screen
+    checks: list[Check] = field(default_factory=list)  # hosid.screen
+    notes: list[str] = field(default_factory=list)
 
     @property
     def values(self) -> dict[str, float]:
@@ -162,12 +188,15 @@ def estimate(
     start: np.ndarray | None = None,
     rounds: int = 2,
     block_seconds: float | None = None,
+    band_limit: bool = True,
     force: bool = False,
     unit: str = "m",
     checks: Sequence[Check] | None = None,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` and its mode (module docstring),
-    searched within the default priors' supports.
+    searched within the default priors' supports; with ``band_limit`` the model gets
+    ``band_limited_excitation`` when the record's excitation stops below the Nyquist
+    frequency.
 
     A :class:`~hosid.record.Record` is checked first (:func:`hosid.screen.check_record`);
     ``force`` estimates a record that fails a check anyway, ``unit`` names the
@@ -192,6 +221,7 @@ def estimate(
         if isinstance(record, RecordState)
         else prepare_state(record, model, block_seconds=block_seconds)
     )
+    model, notes = excitation_for(state, model, band_limit=band_limit and start is None)
     components = list(components or components_for())
     if model.has("noise_sd") and not any(isinstance(c, NoiseFloor) for c in components):
         components.append(NoiseFloor())
@@ -221,7 +251,9 @@ def estimate(
     cov = cov * np.outer(f, f)
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
-    return Estimate(model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks)
+    return Estimate(
+        model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes
+    )
 
 
 def likelihood_map(est: Estimate, draws: np.ndarray, loglike=None, n: int = 61) -> dict | None:

@@ -143,6 +143,7 @@ def fit(
     est = estimate(
         record, model, comps, block_seconds=block_seconds, force=force, unit=unit, checks=checks
     )
+    model = est.model  # with the excitation terms the record calls for (estimate docstring)
     timings["estimate"] = time.perf_counter() - t0
     if priors is None:
         priors = model.default_priors(est.scales(), constrained=constrained)
@@ -242,6 +243,7 @@ def fit(
         "sigma_v": est.sigma_v,
         "unit": unit,
         "state": est.state.describe(),
+        "record_notes": est.notes,
         "estimate": est.values,
         "pilot": model.params(est.pilot),
         "calibration": cal.describe(),

@@ -18,7 +18,8 @@ import math
 
 import numpy as np
 
-from ..components.base import Excitation, feature_ffts
+from ..components.base import feature_ffts
+from ..components.excitation import Excitation
 from ..components.identities import Identities
 from ..components.spectral import default_band
 from ..errors import HosidInputError
@@ -29,10 +30,17 @@ __all__ = ["initial_theta", "pilot"]
 
 
 def initial_theta(state: RecordState, model: Model) -> np.ndarray:
-    """A start before any estimate: no drift, the rough level, white-ish excitation."""
+    """A start before any estimate: no drift, the rough level, white-ish excitation (or
+    the middle of the record's excitation edge).
+    """
     s = state.scales
     noise = state.noise["sd"] if state.noise else 0.01 * s.sigma_x
-    start = {"S0": s.S0, "wc": 2.0 * s.omega_nyquist, "noise_sd": max(noise, 1e-3 * s.sigma_x)}
+    start = {
+        "S0": s.S0,
+        "wc": 2.0 * s.omega_nyquist,
+        "wb": 0.5 * sum(s.band_edge) if s.band_edge else s.omega_nyquist,
+        "noise_sd": max(noise, 1e-3 * s.sigma_x),
+    }
     return np.array([start.get(p, 0.0) for p in model.param_names])
 
 
@@ -53,7 +61,7 @@ def pilot(state: RecordState, model: Model, theta: np.ndarray | None = None) -> 
     for _ in range(2):
         Q, const, e, ex, _, s2 = Identities().statistics(state, model, theta)
         exc = Excitation(model, theta, state.scales.sigma_v, state.scales.sigma_x)
-        rho, rho_x = float(exc.rho(theta)), float(exc.rho_x(theta))
+        rho, rho_x = (float(r) for r in exc.powers(theta))
         try:
             alpha = np.linalg.solve(Q.mean(0), -const.mean(0))
             beta = np.linalg.solve(Q.mean(0), rho * e.mean(0) + rho_x * ex.mean(0))

@@ -25,13 +25,16 @@ class Scales:
     r"""Scales of a record that default priors and settings are built from.
 
     ``sigma_x``, ``sigma_v``: standard deviations of displacement and velocity;
-    ``S0``: a rough excitation level; ``dt``: sampling interval (s).
+    ``S0``: a rough excitation level; ``dt``: sampling interval (s); ``band_edge``: the
+    bracket (rad/s) of the frequency where the record's excitation stops, if it stops
+    below the Nyquist frequency (:mod:`hosid.spectra.response`).
     """
 
     sigma_x: float
     sigma_v: float
     S0: float
     dt: float
+    band_edge: tuple[float, float] | None = None
 
     @property
     def omega_n(self) -> float:

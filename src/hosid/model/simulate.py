@@ -10,6 +10,11 @@ The equation of motion is assembled from the drift library,
 driven by a force :math:`g` that is Gaussian white noise of two-sided level :math:`S_0`
 (:math:`R_g(\tau) = 2\pi S_0\,\delta(\tau)`, eqs 42-43) or, with a corner
 :math:`\omega_c > 0`, white noise through the low-pass :math:`\dot g = \omega_c(w - g)`.
+With a band edge :math:`\omega_b > 0` the force is Gaussian with the spectrum
+:math:`S_0L(\omega)\mathbf 1\{|\omega| \le \omega_b\}/(1 + \beta\omega^2/\omega_b^2)`
+(the low-pass's :math:`L`, or 1; :math:`\beta` the band's ``rolloff``, default 0):
+white noise on the sub-step grid shaped once by an FFT of the whole run, then integrated
+as a smooth input (Heun with the force at both ends of a sub-step).
 Measurement noise (white, standard deviation ``noise_sd``) is added to the sampled
 displacement only.
 
@@ -36,14 +41,21 @@ from ..errors import HosidInputError
 from ..record import Record
 from ..screen import THRESHOLDS
 
-__all__ = ["PAPER_PARAMS", "SIM_KEYS", "equivalent_rate", "simulate", "simulate_ensemble"]
+__all__ = [
+    "PAPER_PARAMS",
+    "SIM_KEYS",
+    "band_limited_force",
+    "equivalent_rate",
+    "simulate",
+    "simulate_ensemble",
+]
 
 #: Paper parameter values (section 7.4) with the Figure 6-8 excitation level.
 PAPER_PARAMS: dict[str, float] = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0}
 
 #: Drift coefficients in the order of the compiled kernel, then the other keys.
 _DRIFT_KEYS = ("a1", "n1", "a2", "n2", "b2", "mu", "m")
-SIM_KEYS = (*_DRIFT_KEYS, "S0", "wc", "noise_sd")
+SIM_KEYS = (*_DRIFT_KEYS, "S0", "wc", "wb", "rolloff", "noise_sd")
 
 
 @numba.njit(cache=True, inline="always")
@@ -87,6 +99,46 @@ def _heun(dW, n_out, sub, h, c, wc, burn, xs, vs):  # pragma: no cover - compile
         if i >= burn:
             xs[i - burn] = x
             vs[i - burn] = v
+
+
+@numba.njit(cache=True)
+def _heun_forced(f, n_out, sub, h, c, burn, xs, vs):  # pragma: no cover - compiled
+    """Heun on (x, v) driven by the smooth force ``f`` given on the sub-step grid."""
+    x = 0.0
+    v = 0.0
+    k = 0
+    for i in range(burn + n_out):
+        for _ in range(sub):
+            a0 = _accel(x, v, f[k], c)
+            xp = x + h * v
+            vp = v + h * a0
+            a1 = _accel(xp, vp, f[k + 1], c)
+            x += 0.5 * h * (v + vp)
+            v += 0.5 * h * (a0 + a1)
+            k += 1
+        if i >= burn:
+            xs[i - burn] = x
+            vs[i - burn] = v
+
+
+def band_limited_force(
+    n: int,
+    h: float,
+    S0: float,
+    wb: float,
+    wc: float,
+    rng: np.random.Generator,
+    rolloff: float = 0.0,
+) -> np.ndarray:
+    r"""``n`` samples at step ``h`` of a stationary Gaussian force of two-sided spectrum
+    :math:`S_0L(\omega)\mathbf 1\{|\omega| \le \omega_b\}/(1 + \beta\omega^2/\omega_b^2)`
+    (module docstring).
+    """
+    w = rng.standard_normal(n) * math.sqrt(2.0 * math.pi * S0 / h)
+    omega = 2.0 * math.pi * np.fft.rfftfreq(n, h)
+    gain = (omega <= wb) * (wc / np.sqrt(wc**2 + omega**2) if wc > 0 else 1.0)
+    gain = gain / np.sqrt(1.0 + rolloff * (omega / wb) ** 2)
+    return np.fft.irfft(np.fft.rfft(w) * gain, n)
 
 
 def equivalent_rate(params: Mapping[str, float]) -> float:
@@ -179,8 +231,9 @@ def simulate(
     ----------
     params : mapping
         ``a1, n1, a2, n2`` (eq 40), optional ``b2, mu, m`` (drift), ``S0`` (two-sided
-        level, :math:`D^2 = 2\pi S_0`), ``wc`` (low-pass corner, 0 or absent = white)
-        and ``noise_sd`` (measurement noise).
+        level, :math:`D^2 = 2\pi S_0`), ``wc`` (low-pass corner, 0 or absent = white),
+        ``wb`` (band edge of the force, 0 or absent = none) and ``rolloff`` (the band's
+        roll-off) and ``noise_sd`` (measurement noise).
     duration, dt : float
         Record length and sampling interval (s).
     rng : numpy.random.Generator
@@ -212,10 +265,16 @@ def simulate(
     burn = round(burn_in / dt)
     sub = int(substeps)
     h = dt / sub
-    dW = rng.standard_normal((burn + n_out) * sub) * math.sqrt(2.0 * math.pi * S0 * h)
     xs = np.empty(n_out)
     vs = np.empty(n_out)
-    _heun(dW, n_out, sub, h, c, wc, burn, xs, vs)
+    wb = float(params.get("wb", 0.0) or 0.0)
+    if wb > 0:
+        rolloff = float(params.get("rolloff", 0.0) or 0.0)
+        f = band_limited_force((burn + n_out) * sub + 1, h, S0, wb, wc, rng, rolloff)
+        _heun_forced(f, n_out, sub, h, c, burn, xs, vs)
+    else:
+        dW = rng.standard_normal((burn + n_out) * sub) * math.sqrt(2.0 * math.pi * S0 * h)
+        _heun(dW, n_out, sub, h, c, wc, burn, xs, vs)
     if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(vs))):
         raise HosidInputError(
             "the simulated response escaped (no stationary state for these parameters, "

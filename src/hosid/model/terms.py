@@ -12,9 +12,11 @@ feature :math:`\phi_k` of the displacement or of the velocity alone (the mean fo
 :math:`m` is the feature :math:`-1`), :math:`g` is white noise of two-sided level
 :math:`S_0` (:math:`R_g(\tau) = 2\pi S_0\,\delta(\tau)`, paper eqs 42-43) or, with
 ``coloured_excitation``, white noise through the low-pass
-:math:`\dot g = \omega_c(w - g)`, and :math:`\epsilon_n \sim N(0, \sigma_\epsilon^2)` is
-measurement noise.  The force inferred from a record is
-:math:`f = \ddot x + \sum_k\theta_k\phi_k` (eq 45 for the paper's four drift terms).
+:math:`\dot g = \omega_c(w - g)`, and with ``band_limited_excitation`` a force whose
+spectrum stops at :math:`\omega_b` (a multisine, a shaker's band), and
+:math:`\epsilon_n \sim N(0, \sigma_\epsilon^2)` is measurement noise.  The force inferred
+from a record is :math:`f = \ddot x + \sum_k\theta_k\phi_k` (eq 45 for the paper's four
+drift terms).
 
 A drift term knows its feature and its derivatives in its variable (generalized
 functions are Gaussian-regularized at a width ``eps``: :math:`\delta(v) \to
@@ -287,7 +289,8 @@ class ExcitationLevel(Term):
 class ColouredExcitation(Term):
     r"""The white force through a first-order low-pass,
     :math:`S_g = S_0\,\omega_c^2/(\omega_c^2+\omega^2)`;
-    :math:`\omega_c \sim \log U(\omega_n/10, 2\omega_N)`.
+    :math:`\omega_c \sim \log U(\omega_n/10, 2\omega_N)` (up to :math:`30\,\omega_b` under a
+    band-limited excitation).
     """
 
     name: ClassVar[str] = "coloured_excitation"
@@ -303,8 +306,44 @@ class ColouredExcitation(Term):
         return wc**2 / (wc**2 + omega**2)
 
     def default_priors(self, scales):
-        """``logU(w_n / 10, 2 pi / dt)``."""
-        return {"wc": LogUniform(scales.omega_n / 10.0, 2.0 * scales.omega_nyquist)}
+        """``logU(w_n / 10, 2 pi / dt)``; up to 30 times the edge of a band-limited
+        excitation (whose flat band is a corner far above the edge).
+        """
+        top = 2.0 * scales.omega_nyquist
+        if scales.band_edge is not None:
+            top = max(top, 30.0 * scales.band_edge[1])
+        return {"wc": LogUniform(scales.omega_n / 10.0, top)}
+
+
+@dataclass(frozen=True, repr=False)
+class BandLimitedExcitation(Term):
+    r"""A force whose spectrum stops at :math:`\omega_b` and may roll off within its band,
+    :math:`S_g = S_0\,\mathbf 1\{|\omega| \le \omega_b\}/(1 + \beta\omega^2/\omega_b^2)`
+    (a multisine, a shaker's band; :math:`\beta = 0` is flat, the band's top is
+    :math:`S_0/(1+\beta)`).  :math:`\omega_b \sim U` over the bracket of the record's
+    excitation edge (:mod:`hosid.spectra.response`), or :math:`U(\omega_N/2, 2\omega_N)`
+    when the record shows none; :math:`\beta \sim U(0, 9)`.
+
+    Below the Nyquist frequency the edge leaves nothing to restore above it (the
+    velocity restoration of :mod:`hosid.state` vanishes), and the force's power reaches
+    the generator identities through the input-power integrals of
+    :func:`hosid.components.excitation.input_power`.  (The roll-off is the same low-pass as
+    ``coloured_excitation``'s, :math:`\omega_c = \omega_b/\sqrt\beta`, in a coordinate
+    whose flat end is a finite bound: the posterior of :math:`\beta` is near Gaussian,
+    where :math:`\log\omega_c` has a plateau up to its prior's bound.)
+    """
+
+    name: ClassVar[str] = "band_limited_excitation"
+    params: ClassVar[tuple[str, ...]] = ("wb", "rolloff")
+    kind: ClassVar[str] = "excitation"
+    latex: ClassVar[str] = (
+        r"\frac{S_0\,\mathbf{1}\{|\omega| \le \omega_b\}}{1 + \beta\omega^2/\omega_b^2}"
+    )
+
+    def default_priors(self, scales):
+        """``wb ~ U(edge bracket)`` or ``U(w_N / 2, 2 w_N)``; ``rolloff ~ U(0, 9)``."""
+        lo, hi = scales.band_edge or (0.5 * scales.omega_nyquist, 2.0 * scales.omega_nyquist)
+        return {"wb": Uniform(lo, hi), "rolloff": Uniform(0.0, 9.0)}
 
 
 @dataclass(frozen=True, repr=False)
@@ -337,6 +376,7 @@ TERMS: dict[str, Term] = {
         ExcitationMean(),
         ExcitationLevel(),
         ColouredExcitation(),
+        BandLimitedExcitation(),
         MeasurementNoise(),
     )
 }

@@ -11,10 +11,22 @@ the samples a segment holds beyond its last whole block are not used).  For a si
 and :math:`|Y_r|^2/(2\pi T k_2)` is a block periodogram whose mean over blocks
 estimates the two-sided spectral density.
 
-:func:`choose_layout` derives the block length from the record (the paper's 20.48 s
-is 16 periods of its oscillator): about 16 periods of the equivalent natural frequency
-:math:`\omega_n = \sigma_{\dot x}/\sigma_x`, rounded to a power of two, shortened to
-keep at least :data:`MIN_BLOCKS` blocks but never below :data:`MIN_PERIODS` periods.
+:func:`choose_layout` derives the block length from the record's response spectrum
+(:mod:`hosid.spectra.response`): at least 16 periods of the equivalent natural frequency
+:math:`\omega_n = \sigma_{\dot x}/\sigma_x` (the paper's 20.48 s for its oscillator)
+and at least :data:`BINS_PER_BANDWIDTH` Fourier bins across the resonance's equivalent
+bandwidth :math:`\Delta\omega` (:math:`T \ge 4\cdot2\pi/\Delta\omega`: a lightly
+damped resonance needs blocks several decay times long), rounded to a power of two,
+shortened to keep at least :data:`MIN_BLOCKS` blocks but never below
+:data:`MIN_PERIODS` periods.
+
+A segment that repeats itself (the steady-state response to a periodic input holding
+more than one period, or one period of an *odd* multisine, :math:`u(t + P/2) = -u(t)`,
+whose response to a symmetric system is antiperiodic) would give blocks that are copies
+of each other, and the block statistics would count the same information twice:
+:func:`distinct_bounds` finds the lag :math:`\tau` at which a segment's normalized
+autocorrelation reaches :data:`REPEAT_CORRELATION` in absolute value (lags from an eighth
+to seven eighths of the segment) and keeps blocks in its first :math:`\tau` samples.
 """
 
 from __future__ import annotations
@@ -29,13 +41,17 @@ from ..errors import HosidInputError
 from .windows import Window, get_window
 
 __all__ = [
+    "BINS_PER_BANDWIDTH",
     "MIN_BLOCKS",
     "MIN_PERIODS",
     "PERIODS",
+    "REPEAT_CORRELATION",
     "BlockLayout",
     "block_fft",
     "block_means",
     "choose_layout",
+    "distinct_bounds",
+    "repeat_lag",
     "windowed_fft",
 ]
 
@@ -45,6 +61,10 @@ PERIODS = 16.0
 MIN_PERIODS = 4.0
 #: Fewest blocks a fit needs (the covariance of the block statistics).
 MIN_BLOCKS = 24
+#: Fourier bins of a default block across the resonance's equivalent bandwidth.
+BINS_PER_BANDWIDTH = 4.0
+#: Absolute autocorrelation at which a segment is taken to repeat itself.
+REPEAT_CORRELATION = 0.9
 
 
 @dataclass(frozen=True)
@@ -116,6 +136,7 @@ def choose_layout(
     block_seconds: float | None = None,
     min_blocks: int = MIN_BLOCKS,
     bounds: Sequence[tuple[int, int]] | None = None,
+    bandwidth: float | None = None,
 ) -> BlockLayout:
     """The block layout of a record of ``n`` samples (module docstring).
 
@@ -129,6 +150,8 @@ def choose_layout(
         Use this block length instead.
     bounds : sequence of (start, stop), optional
         The record's segments (:attr:`hosid.record.Record.bounds`); default one.
+    bandwidth : float, optional
+        The resonance's equivalent bandwidth (rad/s), if known.
 
     Raises
     ------
@@ -153,7 +176,10 @@ def choose_layout(
                 f"blocks of {M} samples ({block_seconds:g} s)"
             )
         return layout
-    M = 2 ** round(math.log2(max(PERIODS * period / dt, 16.0)))
+    target = PERIODS * period
+    if bandwidth is not None and bandwidth > 0:
+        target = max(target, BINS_PER_BANDWIDTH * 2.0 * math.pi / bandwidth)
+    M = 2 ** round(math.log2(max(target / dt, 16.0)))
     while _fit(bounds, M, dt).B < min_blocks and M > 16:
         M //= 2
     layout = _fit(bounds, M, dt)
@@ -165,6 +191,50 @@ def choose_layout(
             f"({m_min} samples) need {min_blocks * m_min * dt:g} s"
         )
     return layout
+
+
+def repeat_lag(y: np.ndarray, *, edge: float = 0.125) -> tuple[int, float]:
+    r"""The first lag :math:`\tau` (samples, from ``edge`` to ``1 - edge`` of the length)
+    at which the absolute normalized autocorrelation of ``y`` peaks above
+    :data:`REPEAT_CORRELATION` (else the lag of its largest value), and its value,
+    :math:`r(\tau) = \sum_iy_iy_{i+\tau}/(\sum_iy_i^2\sum_iy_{i+\tau}^2)^{1/2}` over the
+    overlap (``y`` centred first).
+    """
+    y = np.asarray(y, dtype=float) - np.mean(y)
+    n = y.size
+    lags = np.arange(math.ceil(edge * n), math.floor((1.0 - edge) * n) + 1)
+    if lags.size == 0 or n < 16:
+        return 0, 0.0
+    F = np.fft.rfft(y, 2 * n)
+    c = np.fft.irfft(F.real**2 + F.imag**2, 2 * n)[lags]
+    e = np.concatenate([[0.0], np.cumsum(y**2)])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = c / np.sqrt(e[n - lags] * (e[n] - e[lags]))
+    a = np.abs(np.nan_to_num(r))
+    peaks = np.flatnonzero(
+        (a >= REPEAT_CORRELATION) & (a >= np.r_[0.0, a[:-1]]) & (a >= np.r_[a[1:], 0.0])
+    )
+    k = int(peaks[0]) if peaks.size else int(np.argmax(a))  # the first copy, if any
+    return int(lags[k]), float(r[k])
+
+
+def distinct_bounds(
+    x: np.ndarray, bounds: Sequence[tuple[int, int]], *, threshold: float = REPEAT_CORRELATION
+) -> tuple[list[tuple[int, int]], list[tuple[int, float] | None]]:
+    """Per segment, the samples that are not a copy of earlier ones (module docstring):
+    ``(start, start + tau)`` where the segment repeats with lag ``tau``, else the segment,
+    and the ``(tau, r)`` found (``None`` where it does not repeat).
+    """
+    out, found = [], []
+    for a, b in bounds:
+        lag, r = repeat_lag(x[a:b])
+        if abs(r) >= threshold:
+            out.append((a, a + lag))
+            found.append((lag, r))
+        else:
+            out.append((a, b))
+            found.append(None)
+    return out, found
 
 
 def block_means(y: np.ndarray, layout: BlockLayout) -> np.ndarray:
