@@ -1,6 +1,6 @@
 """Command line: argument parsing and error mapping only.
 
-``hosid simulate | estimate | fit | diagnose | report | demo``.  Bad input of any kind
+``hosid simulate | estimate | fit | diagnose | report | demo | batch``.  Bad input of any kind
 ends with one line ``hosid: error: <message>`` on stderr and exit code 2, without a
 traceback.
 """
@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from hosid import __version__, commands
+from hosid.batch.cli import add_batch_parser
 from hosid.errors import HosidInputError
 
 __all__ = ["build_parser", "main"]
@@ -234,6 +235,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=_integer(0), default=2026, help="default 2026")
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
     demo.set_defaults(func=commands.cmd_demo)
+    add_batch_parser(sub)
     return parser
 
 
@@ -244,7 +246,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
         if args.command is None:
             parser.error(
-                "a command is required: simulate, estimate, fit, diagnose, report or demo"
+                "a command is required: simulate, estimate, fit, diagnose, report, demo or batch"
             )
         return args.func(args)
     except (_UsageError, HosidInputError) as exc:
