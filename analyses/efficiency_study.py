@@ -199,7 +199,10 @@ def main(argv: Sequence[str] | None = None) -> dict:
     if not path.is_file():
         raise SystemExit(f"{path}: no results yet; run the study first")
     with path.open(newline="") as fh:
-        names = {r["design"] for r in csv.DictReader(fh)}
+        rows = list(csv.DictReader(fh))
+    if rows and "design" not in rows[0]:
+        raise SystemExit(f"{path} predates hosid batch (one row per parameter); rerun the study")
+    names = {r["design"] for r in rows}
     bounds = ensure(
         [r for r in select(None) if r.name in names],
         args.out,

@@ -28,6 +28,7 @@ from hosid.batch.table import TIMES
 from hosid.cli import main
 from hosid.errors import HosidInputError, RecordRejected
 from hosid.output.files import locked_dir
+from hosid.output.results import load
 from hosid.record import write_record
 from hosid.verdicts import Check
 
@@ -164,13 +165,22 @@ def test_run_task_is_a_pure_function_and_maps_rejection(records, monkeypatch):
 def test_one_and_two_workers_give_identical_tables(records, cluster, tmp_path):
     paths = expand_inputs([str(records / "r*.npz")])
     tasks = record_tasks(paths, analysis="fit", options=FIT, seed=3)
-    one = run_batch(tasks, tmp_path / "one", workers=1, progress=False)
-    two = run_batch(tasks, tmp_path / "two", scheduler=cluster, progress=False)
+    one = run_batch(tasks, tmp_path / "one", workers=1, progress=False, save_posterior=True)
+    two = run_batch(
+        tasks, tmp_path / "two", scheduler=cluster, progress=False, save_posterior=True
+    )
     assert one.counts["ok"] == two.counts["ok"] == 4
     a, b = _table(tmp_path / "one" / "results.csv"), _table(tmp_path / "two" / "results.csv")
     assert a == b  # every digit of every column but the times
     assert [r["record"] for r in a] == paths
     assert all(math.isfinite(float(r["a1_r_hat"])) for r in a)
+    # the same fit in this process, and each posterior.nc holds the row's draws
+    task = tasks[2].prepare()
+    here = run_task(task, task.seed_sequence()).row
+    assert repr(here["a1_mean"]) == a[2]["a1_mean"] and repr(here["S0_q95"]) == a[2]["S0_q95"]
+    tree = load(tmp_path / "two" / a[2]["posterior"])
+    assert float(tree["posterior"]["a1"].mean()) == pytest.approx(here["a1_mean"], rel=1e-12)
+    assert "likelihood_map" in tree.children  # kept for hosid report
 
 
 def test_corrupt_record_error_row_resume_and_lock(records, cluster, tmp_path):

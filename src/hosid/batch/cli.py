@@ -29,20 +29,67 @@ _SPECTRAL = ("fit", "estimate")
 
 def _flags(base) -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
     """Analysis options: flag, option name, the analyses it applies to, argparse kwargs."""
+    n = base._integer
     return (
-        ("--model", "model", _ALL, {"metavar": "MODEL", "help": "default paper (diagnose: base)"}),
-        ("--cost", "cost", _SPECTRAL, {"choices": ("J2", "J4A", "J4B"), "help": "paper's costs"}),
-        ("--unconstrained", "constrained", ("fit",), {"action": "store_false"}),
-        ("--walkers", "n_walkers", ("fit",), {"type": base._integer(2), "help": "default 32"}),
-        ("--steps", "n_steps", ("fit",), {"type": base._integer(1), "help": "default: adaptive"}),
-        ("--block-seconds", "block_seconds", _SPECTRAL, {"type": base._positive}),
-        ("--omega-max", "omega_max", _SPECTRAL, {"type": base._positive}),
+        (
+            "--model",
+            "model",
+            _ALL,
+            {
+                "metavar": "MODEL",
+                "help": "linear, paper (default) or term names; diagnose: the base model",
+            },
+        ),
+        (
+            "--cost",
+            "cost",
+            _SPECTRAL,
+            {
+                "choices": ("J2", "J4A", "J4B"),
+                "help": "the paper's components instead of the default",
+            },
+        ),
+        (
+            "--unconstrained",
+            "constrained",
+            ("fit",),
+            {"action": "store_false", "help": "drop eq 65's a1eq > 0"},
+        ),
+        ("--walkers", "n_walkers", ("fit",), {"type": n(2), "metavar": "N", "help": "default 32"}),
+        (
+            "--steps",
+            "n_steps",
+            ("fit",),
+            {"type": n(1), "metavar": "N", "help": "per walker; default: until converged"},
+        ),
+        ("--block-seconds", "block_seconds", _SPECTRAL, {"type": base._positive, "metavar": "S"}),
+        ("--omega-max", "omega_max", _SPECTRAL, {"type": base._positive, "metavar": "W"}),
         ("--form", "form", _SPECTRAL, {"choices": ("scaled", "printed")}),
         ("--domain", "domain", _SPECTRAL, {"choices": ("principal", "reduced", "full")}),
-        ("--candidates", "candidates", ("diagnose",), {"type": _names, "metavar": "LIST"}),
-        ("--replicates", "replicates", ("diagnose",), {"type": base._integer(4)}),
-        ("--threshold", "threshold", ("diagnose",), {"type": base._positive}),
-        ("--shrink", "shrink", ("diagnose",), {"type": base._positive}),
+        (
+            "--candidates",
+            "candidates",
+            ("diagnose",),
+            {"type": _names, "metavar": "LIST", "help": "effects to try; default all"},
+        ),
+        (
+            "--replicates",
+            "replicates",
+            ("diagnose",),
+            {"type": n(4), "metavar": "N", "help": "default 20"},
+        ),
+        (
+            "--threshold",
+            "threshold",
+            ("diagnose",),
+            {"type": base._positive, "metavar": "Z", "help": "default 3"},
+        ),
+        (
+            "--shrink",
+            "shrink",
+            ("diagnose",),
+            {"type": base._positive, "metavar": "F", "help": "default 0.75"},
+        ),
     )
 
 

@@ -281,7 +281,8 @@ def run_batch(
         finally:
             bar.close()
             result.rows = _rows(order, rows)
-            result.tables = write_table(out, result.rows)
+            if result.rows:
+                result.tables = write_table(out, result.rows)
     result.counts = Counter(r.get("status", "error") for r in result.rows)
     result.seconds = time.perf_counter() - t0
     return result

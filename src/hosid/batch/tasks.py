@@ -4,9 +4,10 @@ A task is one record through one analysis (``fit``, ``estimate`` or ``diagnose``
 fixed options.  The record is a file (``hosid batch fit RECORD...``) or a design point
 simulated in the worker (``hosid batch simulate-study``, :mod:`hosid.batch.design`).
 
-Its **id** is a hash of everything its result depends on: the analysis, its options,
-the root seed and the record's content hash (:attr:`hosid.record.Record.hash`) or the
-design point.  A rerun finds the finished tasks by their ids.
+Its **id** is a hash of everything its row depends on: the analysis, its options, the
+root seed, the record's content hash (:attr:`hosid.record.Record.hash`) or the design
+point, the true values and hosid's version.  A rerun finds the finished tasks by their
+ids.
 
 Its **random stream** is
 
@@ -220,13 +221,19 @@ class Task:
 
     @cached_property
     def id(self) -> str:
-        """16 hex digits of the SHA-256 of the analysis, options, seed and source."""
+        """16 hex digits of the SHA-256 of the analysis, options, seed, source, true values
+        and hosid's version.
+        """
+        from .. import __version__
+
         text = json.dumps(
             {
                 "analysis": self.analysis,
                 "options": dict(self.options),
                 "seed": int(self.seed),
                 **self.source,
+                "truths": dict(self.truths or {}),
+                "hosid": __version__,
             },
             sort_keys=True,
         )

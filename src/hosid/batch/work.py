@@ -17,10 +17,12 @@ equivalent damping of eq (65), :math:`a_{1eq} = a_1 + n_1\sqrt{8/\pi}\,\sigma_{\
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -150,7 +152,23 @@ def _record(task: Task, seed) -> tuple[Record, np.ndarray | None]:
         return simulate(task.point, rng=np.random.default_rng(child_seed(seed, 0)))
     if task.record is None:
         raise HosidInputError(f"{task.label}: the record was not read")
-    return task.record, None
+    # a fresh copy: samples that arrive through dask are a view at any byte offset of the
+    # message, unaligned, and numpy sums unaligned data in another order (the last digits
+    # of a fit would depend on how the task travelled)
+    r = task.record
+    return Record(r.x, r.dt, r.name), None  # Record copies its samples
+
+
+def _netcdf(tree) -> bytes:
+    """``posterior.nc`` as bytes (:func:`hosid.output.results.save`).  The tree is in
+    memory: xarray's writer needs no lock of the dask cluster it runs in.
+    """
+    import dask
+
+    from ..output.results import save
+
+    with tempfile.TemporaryDirectory() as tmp, dask.config.set(scheduler="synchronous"):
+        return save(tree, Path(tmp) / "posterior.nc").read_bytes()
 
 
 def _one_line(exc: BaseException) -> str:
@@ -213,7 +231,7 @@ def run_task(
                 row["sigma_v"] = float(np.std(velocity))
                 row["true_a1eq"] = float(m.equivalent_damping(theta, row["sigma_v"]))
             if posterior and tree is not None:
-                out.posterior = bytes(tree.to_netcdf(engine="h5netcdf"))  # as output.save
+                out.posterior = _netcdf(tree)
         except RecordRejected as exc:
             row.update(status="rejected", message=_one_line(exc))
             _verdict(row, exc.checks)
