@@ -10,8 +10,9 @@ running, and the same command finishes the rest.
 
 The workers are a ``LocalCluster`` (``workers`` processes, one thread each, with OpenMP,
 BLAS and numba pinned to one thread) or an existing cluster (``scheduler``, started with
-``dask scheduler`` and ``dask worker``; the workers need hosid installed and the
-folder's records and simulator files at the same paths).  A worker that dies has its
+``dask scheduler`` and ``dask worker``; the workers need hosid installed and a design's
+simulator files at the same paths: this process reads the records and writes the
+folder).  A worker that dies has its
 task retried on another one by the scheduler (``distributed.scheduler.allowed-failures``,
 3 by default); a task that kills its worker every time gets an error row.
 """
