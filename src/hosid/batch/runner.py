@@ -95,16 +95,20 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
 
 
 def local_cluster(workers: int):
-    """A ``distributed.LocalCluster`` of ``workers`` processes with one thread each and
-    every numerical library held to one thread (:data:`THREAD_ENV`).
+    """A ``distributed.LocalCluster`` of ``workers`` processes with one thread each,
+    every numerical library held to one thread (:data:`THREAD_ENV`) and glibc's own
+    memory trimming.
     """
     import dask
     from distributed import LocalCluster
 
     if int(workers) < 1:
         raise HosidInputError(f"--workers must be at least 1, got {workers}")
-    env = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **THREAD_ENV}
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": env}):
+    env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    # dask's MALLOC_TRIM_THRESHOLD_ fixes glibc's mmap threshold: every large temporary
+    # array of a fit is then mapped afresh (30 times the page faults, +25 % CPU a fit)
+    env.pop("MALLOC_TRIM_THRESHOLD_", None)
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": {**env, **THREAD_ENV}}):
         return LocalCluster(
             n_workers=int(workers),
             threads_per_worker=1,
