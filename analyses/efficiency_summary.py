@@ -1,4 +1,4 @@
-"""Summary of an efficiency study: Markdown tables and a figure from its CSV.
+"""Summary of an efficiency study: Markdown tables and a figure from its results.csv.
 
 Per regime and parameter, over the records whose fit succeeded:
 
@@ -18,7 +18,6 @@ draws with a1eq <= 0, warnings.
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -27,39 +26,53 @@ import numpy as np
 from matplotlib.figure import Figure
 from regimes import select
 
+from hosid.batch import read_results
+
 PARAMS = ("a1", "n1", "a2", "n2", "S0", "a1eq")
 CRB_PARAMS = ("a1", "n1", "a2", "n2", "a1eq")
 POOLED = ("a1", "n1", "a2", "n2", "S0")
-NUMERIC = (
-    "record",
-    "S0_true",
-    "duration",
-    "sigma_v",
-    "truth",
-    "mean",
-    "sd",
-    "q05",
-    "q25",
-    "q50",
-    "q75",
-    "q95",
-    "draw_min",
-    "r_hat",
-    "ess_bulk",
-    "ess_tail",
-    "fit_seconds",
-)
 RHAT_MAX, ESS_MIN = 1.01, 400.0
+#: Long-row fields and the results.csv column of each (``{p}`` is the parameter).
+FIELDS = {
+    "truth": "true_{p}",
+    "mean": "{p}_mean",
+    "sd": "{p}_sd",
+    "q05": "{p}_q05",
+    "q25": "{p}_q25",
+    "q50": "{p}_q50",
+    "q75": "{p}_q75",
+    "q95": "{p}_q95",
+    "draw_min": "{p}_min",
+    "r_hat": "{p}_r_hat",
+    "ess_bulk": "{p}_ess_bulk",
+    "ess_tail": "{p}_ess_tail",
+}
 
 
 def read_rows(path: Path) -> list[dict]:
-    """The study's CSV rows, numbers as floats."""
-    with path.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    for r in rows:
-        for k in NUMERIC:
-            r[k] = float(r[k]) if r.get(k, "") != "" else math.nan
+    """One row per record and parameter from a ``hosid batch`` results.csv (numbers as
+    floats, NaN when missing; ``error`` holds the message of a failed record).
+    """
+    rows = []
+    for r in read_results(path):
+        failed = r["status"] != "ok"
+        for p in PARAMS:
+            row = {
+                "regime": r["design"],
+                "record": float(r["seed_index"]),
+                "param": p,
+                "fit_seconds": _num(r.get("fit_seconds")),
+                "warnings": r.get("warnings") or "",
+                "error": (r.get("message") or r["status"]) if failed else "",
+            }
+            for k, col in FIELDS.items():
+                row[k] = _num(r.get(col.format(p=p)))
+            rows.append(row)
     return rows
+
+
+def _num(value) -> float:
+    return math.nan if value is None else float(value)
 
 
 def group_stats(rows: Sequence[Mapping], crb_sd: float | None) -> dict:

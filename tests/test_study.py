@@ -47,24 +47,26 @@ def test_crb_and_study_tiny(study, tmp_path, capsys):
     assert "| short |" in (tmp_path / "crb.md").read_text()
 
     argv = ["--regimes", "short", "--records", "2", "--n-steps", "200", "--out", str(tmp_path)]
+    argv += ["--work", str(tmp_path / "batch"), "--workers", "1", "--no-progress"]
     summary = es.main(argv)
-    path = tmp_path / "efficiency_default.csv"
+    path = tmp_path / "efficiency_default.csv"  # the batch's results.csv, one row a record
     with path.open() as fh:
         table = list(csv.DictReader(fh))
-    assert len(table) == 2 * len(es.PARAMS)
-    assert {(r["record"], r["param"]) for r in table} == {
-        (str(k), p) for k in range(2) for p in es.PARAMS
-    }
+    assert [(r["design"], r["seed_index"], r["status"]) for r in table] == [
+        ("short", "0", "ok"),
+        ("short", "1", "ok"),
+    ]
+    params = ("a1", "n1", "a2", "n2", "S0", "a1eq")
     for r in table:
-        assert r["error"] == "", r["error"]
-        for k in ("truth", "mean", "sd", "q05", "q25", "q50", "q75", "q95", "r_hat", "ess_bulk"):
-            assert math.isfinite(float(r[k])), (r["param"], k)
-        assert float(r["q05"]) <= float(r["q50"]) <= float(r["q95"])
-    # a1eq truth: eq (65) at the simulated velocity's sd
-    a1eq = next(r for r in table if r["param"] == "a1eq")
-    assert float(a1eq["truth"]) == pytest.approx(
-        0.5 + 0.5 * math.sqrt(8 / math.pi) * float(a1eq["sigma_v"])
-    )
+        for p in params:
+            for k in ("mean", "sd", "q05", "q25", "q50", "q75", "q95", "r_hat", "ess_bulk"):
+                assert math.isfinite(float(r[f"{p}_{k}"])), (p, k)
+            assert float(r[f"{p}_q05"]) <= float(r[f"{p}_q50"]) <= float(r[f"{p}_q95"])
+            assert math.isfinite(float(r[f"true_{p}"]))
+        # a1eq truth: eq (65) at the simulated velocity's sd
+        assert float(r["true_a1eq"]) == pytest.approx(
+            0.5 + 0.5 * math.sqrt(8 / math.pi) * float(r["sigma_v"])
+        )
 
     stats = summary["regimes"]["short"]
     for p in ("a1", "n1", "a2", "n2", "a1eq"):
@@ -79,7 +81,7 @@ def test_crb_and_study_tiny(study, tmp_path, capsys):
     # resumable: a second run fits nothing new; --summary alone rewrites the report
     capsys.readouterr()
     es.main(argv)
-    assert "0 fits to run (2 records already" in capsys.readouterr().out
+    assert "0 fits run, 2 done before" in capsys.readouterr().out
     with path.open() as fh:
         assert len(list(csv.DictReader(fh))) == len(table)
     (tmp_path / "efficiency_default.md").unlink()
@@ -87,12 +89,24 @@ def test_crb_and_study_tiny(study, tmp_path, capsys):
     assert (tmp_path / "efficiency_default.md").is_file()
 
 
-def test_seeds_are_keyed_by_regime_and_record(study):
+def test_seeds_are_keyed_by_regime_and_record(study, tmp_path):
+    """Record k of the regime with key r: SeedSequence(seed).spawn(r + 1)[r].spawn(k + 1)[k],
+    split into the simulation's and the fit's streams (the records of the study before
+    it ran through hosid batch).
+    """
+    from hosid.batch import design_tasks, read_design
+
     es, regimes = study["efficiency_study"], study["regimes"]
     short, paper = regimes.BY_NAME["short"], regimes.BY_NAME["paper_S100"]
-    a = es.record_seeds(1, short, 0)[0].generate_state(2)
-    assert np.array_equal(a, es.record_seeds(1, short, 0)[0].generate_state(2))
-    assert not np.array_equal(a, es.record_seeds(1, short, 1)[0].generate_state(2))
-    assert not np.array_equal(a, es.record_seeds(1, paper, 0)[0].generate_state(2))
+    design = es.write_design([paper, short], tmp_path / "design.csv", records=3)
+    tasks = design_tasks(read_design(design), analysis="fit", options={}, seed=1)
+    assert [t.label for t in tasks] == [f"{r.name}-{k}" for r in (paper, short) for k in range(3)]
+    for t in tasks:
+        r = regimes.BY_NAME[t.point.name]
+        old = np.random.SeedSequence(1).spawn(r.key + 1)[r.key].spawn(t.point.index + 1)
+        np.testing.assert_array_equal(
+            t.seed_sequence().generate_state(4), old[t.point.index].generate_state(4)
+        )
+    assert t.point.ref == f"{ANALYSES / 'independent_sim.py'}:simulate"
     with pytest.raises(ValueError, match="unknown cost"):
-        es.run_study([short], records=1, cost="J9", out=Path("unused"), verbose=False)
+        es.run_study([short], records=1, cost="J9", work=tmp_path / "unused")

@@ -1,6 +1,6 @@
 """Command line: argument parsing and error mapping only.
 
-``hosid simulate | estimate | fit | diagnose | report | demo``.  Every failure ends with
+``hosid simulate | estimate | fit | diagnose | report | demo | batch``.  Every failure ends with
 one line on stderr and no traceback:
 
 - bad input of any kind: ``hosid: error: <message>``, exit code 2;
@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from hosid import __version__, commands
+from hosid.batch.cli import add_batch_parser
 from hosid.errors import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
@@ -256,12 +257,15 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=_integer(0), default=2026, help="default 2026")
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
     demo.set_defaults(func=commands.cmd_demo)
+    add_batch_parser(sub)
     return parser
 
 
 def _resume_hint(args: argparse.Namespace) -> str:
     if args.command in ("fit", "demo"):
         return f"the chain so far is kept; resume with: {args.command_line}"
+    if args.command == "batch":
+        return f"the finished tasks are kept; finish the others with: {args.command_line}"
     return f"nothing was written; rerun: {args.command_line}"
 
 
@@ -276,7 +280,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
         if args.command is None:
             parser.error(
-                "a command is required: simulate, estimate, fit, diagnose, report or demo"
+                "a command is required: simulate, estimate, fit, diagnose, report, demo or batch"
             )
         args.command_line = shlex.join(["hosid", *argv])
         return args.func(args)
