@@ -354,3 +354,14 @@ def test_directory_and_non_archive(tmp_path):
     with pytest.raises(HosidInputError, match=r"not an \.npz archive") as err:
         read_record(tmp_path / "p.npz")
     assert "pickle" not in str(err.value)
+
+
+def test_a_pickled_record_is_an_aligned_copy_with_its_segments():
+    import pickle
+
+    rec = Record.from_segments([np.arange(20.0), np.arange(30.0)], 0.1, "r")
+    blob = bytearray(b"\x00" + pickle.dumps(rec))  # misaligned in its buffer
+    back = pickle.loads(memoryview(blob)[1:])
+    assert back.segments == rec.segments and back.hash == rec.hash and back.name == "r"
+    assert back.x.flags.aligned and not back.x.flags.writeable
+    np.testing.assert_array_equal(back.x, rec.x)

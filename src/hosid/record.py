@@ -155,6 +155,18 @@ class Record:
             h.update(np.asarray(self.segments, dtype=np.int64).tobytes())
         return h.hexdigest()[:16]
 
+    def __setstate__(self, state: dict) -> None:
+        """Unpickle with a fresh, aligned copy of the samples: what arrives through dask
+        is a view at any byte offset of a message, and numpy sums unaligned data in
+        another order (the last digits of a fit would depend on how the record
+        travelled).
+        """
+        state = dict(state)
+        x = np.array(state["x"], dtype=np.float64)
+        x.setflags(write=False)
+        state["x"] = x
+        self.__dict__.update(state)
+
     def __repr__(self) -> str:
         seg = f", segments={self.n_segments}" if self.n_segments > 1 else ""
         return f"Record(n={self.n}, dt={self.dt!r}, name={self.name!r}{seg})"

@@ -152,11 +152,7 @@ def _record(task: Task, seed) -> tuple[Record, np.ndarray | None]:
         return simulate(task.point, rng=np.random.default_rng(child_seed(seed, 0)))
     if task.record is None:
         raise HosidInputError(f"{task.label}: the record was not read")
-    # a fresh copy: samples that arrive through dask are a view at any byte offset of the
-    # message, unaligned, and numpy sums unaligned data in another order (the last digits
-    # of a fit would depend on how the task travelled)
-    r = task.record
-    return Record(r.x, r.dt, r.name), None  # Record copies its samples
+    return task.record, None  # unpickled as an aligned copy (Record.__setstate__)
 
 
 def _netcdf(tree) -> bytes:
