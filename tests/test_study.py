@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 
 ANALYSES = Path(__file__).resolve().parents[1] / "analyses"
-SCRIPTS = ("regimes", "independent_sim", "crb", "efficiency_summary", "efficiency_study")
+SCRIPTS = (
+    "regimes",
+    "independent_sim",
+    "crb",
+    "efficiency_summary",
+    "efficiency_study",
+    "record_checks",
+)
 
 
 @pytest.fixture(scope="module")
@@ -110,3 +117,19 @@ def test_seeds_are_keyed_by_regime_and_record(study, tmp_path):
     assert t.point.ref == f"{ANALYSES / 'independent_sim.py'}:simulate"
     with pytest.raises(ValueError, match="unknown cost"):
         es.run_study([short], records=1, cost="J9", work=tmp_path / "unused")
+
+
+def test_record_checks_study_tiny(study, tmp_path):
+    kinds = ["short", "white noise", "quantised to sd/10"]
+    assert (
+        study["record_checks"].main(["--records", "1", "--kinds", *kinds, "--out", str(tmp_path)])
+        == 0
+    )
+    with open(tmp_path / "record_checks.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {r["kind"] for r in rows} == set(kinds) and len(rows) == 6  # two seed sets
+    verdict = {(r["set"], r["kind"]): r for r in rows}
+    assert verdict[("held", "white noise")]["oscillator"] == "fail"
+    assert verdict[("held", "short")]["oscillator"] == "pass"
+    assert verdict[("tune", "quantised to sd/10")]["quantisation"] == "warn"
+    assert "Held-out good records: 0 of 1 rejected" in (tmp_path / "record_checks.md").read_text()
