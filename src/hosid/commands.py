@@ -250,17 +250,22 @@ def cmd_diagnose(args) -> int:
         rng=np.random.default_rng(args.seed),
         candidates=candidates,
         replicates=args.replicates,
+        alpha=args.alpha,
         threshold=args.threshold,
-        shrink=args.shrink,
+        max_effects=args.max_effects,
+        posterior=args.posterior,
         progress=not args.no_progress,
     )
     out = _out_dir(args.out)
-    save(diag.final_tree, out / "posterior.nc")
-    paths = write_diagnosis(diag, out)
+    paths = []
+    if diag.final.tree is not None:
+        paths.append(save(diag.final_tree, out / "posterior.nc"))
+    paths += write_diagnosis(diag, out)
     rep = diag.report()
-    print(f"base {' + '.join(rep['base'])}: gap {_fmt(rep['gap_before'])}")
-    print(f"named effect: {rep['named_effect'] or 'none'} - {rep['decision']}")
-    print("wrote " + ", ".join(str(p) for p in [out / "posterior.nc", *paths]))
+    gaps = " -> ".join(_fmt(g) for g in rep["gaps"])
+    print(f"base {' + '.join(rep['base'])}: gap {gaps}")
+    print(f"named: {', then '.join(rep['named_effects']) or 'none'} - {rep['decision']}")
+    print("wrote " + ", ".join(str(p) for p in paths))
     return 0
 
 
