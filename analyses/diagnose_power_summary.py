@@ -71,6 +71,30 @@ def power_table(rows: list[dict]) -> tuple[str, dict]:
     return "\n".join(lines) + "\n", curves
 
 
+def efficiency(rows: list[dict]) -> str:
+    r"""How much of the information the first round's ratio uses: for an effect at
+    :math:`k` sd and an estimator of efficiency :math:`e`, :math:`E[D] \approx e k^2 + 1`,
+    so :math:`\hat e = (\bar D - 1)/k^2` (for :math:`k \ge 3`; a boundary null gives a
+    little less than 1 for the ``+ 1``).
+    """
+    groups = defaultdict(list)
+    for r in _ok(rows):
+        if r["hidden"] != "none" and "+" not in r["hidden"] and float(r["strength"]) >= 3:
+            D = json.loads(r["evidence"])[r["hidden"]][1]
+            groups[(r["regime"], r["system"], r["hidden"])].append((float(r["strength"]), D))
+    lines = ["| regime | base | effect | strengths | records | efficiency (D - 1)/k^2 |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for key, vals in sorted(groups.items()):
+        k, D = np.array(vals).T
+        e = (D - 1.0) / k**2
+        ks = ", ".join(f"{x:g}" for x in sorted(set(k)))
+        lines.append(
+            f"| {key[0]} | {key[1]} | {SHORT[key[2]]} | {ks} | {len(D)} | "
+            f"{np.mean(e):.2f} +- {np.std(e, ddof=1) / np.sqrt(len(e)) if len(e) > 1 else 0:.2f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def false_alarms(rows: list[dict]) -> str:
     """Clean records with any effect named, per regime and base."""
     lines = ["| regime | base | records | named any | which |", "|---|---|---|---|---|"]
@@ -199,6 +223,8 @@ def summarize(rows: list[dict], bounds: dict, out: Path) -> str:
         table,
         "## False alarms on clean records\n",
         false_alarms(rows),
+        "## How much of the information the test uses\n",
+        efficiency(rows),
         "## Confusion (first named effect; single effects at >= 3 sd, and clean records)\n",
         confusion(rows),
         "## Two hidden effects\n",

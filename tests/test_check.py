@@ -553,4 +553,7 @@ def test_command_line_with_emcee(tmp_path, capsys):
     tree = load(tmp_path / "d" / "posterior.nc")
     assert {"m", "mu"} <= set(tree["posterior"].data_vars)
     rep = json.loads((tmp_path / "d" / "report.json").read_text())
-    assert rep["gaps"][2] < rep["gaps"][1] < rep["gaps"][0]
+    # the paper model's own simulations may escape on this record (an infinite base gap,
+    # null in JSON); the named models' gaps fall
+    g = [math.inf if v is None else v for v in rep["gaps"]]
+    assert g[2] < g[1] < g[0]

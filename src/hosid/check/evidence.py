@@ -73,7 +73,7 @@ from ..state import RecordState
 
 __all__ = ["COORDINATES", "Coordinate", "Evidence", "critical_z", "screen", "weigh"]
 
-#: A corner this high is a white force on any sampled band (``u = 1/wc^2 = 0``).
+#: A corner this high is a white force on any sampled band (``u = 1/wc = 0``).
 WHITE_CORNER = 1e7
 
 
@@ -159,12 +159,6 @@ class Evidence:
     def param(self) -> str:
         """The effect's parameter."""
         return self.coordinate.param
-
-    def supported(self, level: float) -> bool:
-        """Both calibrated tests reject the null at ``level``."""
-        zc = critical_z(level, self.coordinate.boundary)
-        z = self.z if self.coordinate.boundary else abs(self.z)
-        return bool(self.p_value <= level and z >= zc)
 
     def as_dict(self) -> dict[str, Any]:
         """Plain numbers for reports."""

@@ -203,7 +203,10 @@ def evidence_figure(diag: Diagnosis) -> Figure:
             -math.log10(rnd.alpha), color="tab:red", ls="--", label=f"alpha {rnd.alpha:g}"
         )
         ax_p.set_yticks(y, [""] * len(names))
-        ax_p.set_xscale("symlog", linthresh=2.0)
+        top = max([*lp, *lp_raw, -math.log10(rnd.alpha)])
+        if top > 5:
+            ax_p.set_xscale("symlog", linthresh=2.0)
+        ax_p.set_xlim(0.0, 1.15 * top)
         ax_p.set_xlabel("-log10 p of the quasi-likelihood ratio", fontsize=8)
         ax_p.legend(fontsize=7, loc="lower right")
         ax_z.set_title(
