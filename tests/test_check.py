@@ -408,7 +408,7 @@ def test_rounds_name_in_order_veto_and_stop(clean_1000, monkeypatch):
                  candidate_gaps=False)  # fmt: skip
     assert d.named_effects == ["excitation_mean", "coulomb_friction"]
     assert [s.gap_after for s in d.steps] == [2.0, 1.2] and d.gap_before == 3.0
-    assert "widens the gap" in d.steps[0].vetoed["coulomb_friction"]
+    assert "does not narrow the gap" in d.steps[0].vetoed["coulomb_friction"]
     assert [s[1] for s in seen] == [cands, ["coulomb_friction", "quadratic_stiffness"],
                                     ["quadratic_stiffness"]]  # fmt: skip
     assert {s[2] for s in seen} == {3}  # Bonferroni's family is the first round's

@@ -221,8 +221,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--threshold",
         type=_positive,
         default=3.0,
-        help="robust z of a gap: significance of the base gap, and the widening of the "
-        "gap that vetoes an effect; default 3",
+        help="robust z of the base gap for significance (reported); default 3",
     )
     dia.add_argument(
         "--max-effects", type=_integer(0), default=None, help="name at most this many effects"

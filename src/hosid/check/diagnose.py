@@ -11,9 +11,9 @@ emcee, or the cheaper screened posterior), measures its posterior-predictive gap
    ``alpha`` for the round, whatever the number of candidates);
 2. **add** the supported candidate with the smallest p-value, fit the extended model and
    measure its gap: the gap **vetoes** the effect when the extended model's simulations
-   diverge or its gap exceeds the current one by more than ``threshold`` robust standard
-   deviations of the current model's null gaps (then the next supported candidate is
-   tried);
+   diverge or its gap does not fall below the current one (then the next supported
+   candidate is tried): an effect is named only if the model with it predicts the record
+   better;
 
 until no candidate is supported (or ``max_effects`` are named).  The three numbers of
 every candidate (:math:`z`, :math:`D`, its calibrated p-value) are kept for each round;
@@ -42,7 +42,6 @@ from ..model.model import Model, get_term
 from ..model.terms import CANDIDATES
 from ..record import Record
 from .evidence import COORDINATES
-from .gaps import robust_scale
 from .measures import MeasureSpec
 from .model_check import ModelCheck, check_model
 from .selection import Round, weigh_round
@@ -159,18 +158,12 @@ def _candidates(base: Model, candidates: Sequence[str] | None) -> list[str]:
     return list(dict.fromkeys(cands))
 
 
-def _veto(current: ModelCheck, new: ModelCheck, threshold: float) -> str | None:
+def _veto(current: ModelCheck, new: ModelCheck) -> str | None:
     """Why the extended model's gap vetoes its effect (module docstring), or ``None``."""
     if new.diverged:
         return "its posterior-predictive simulations diverge"
-    if current.diverged:
-        return None
-    _, scale = robust_scale(current.gap["null"])
-    if math.isfinite(scale) and new.total > current.total + threshold * scale:
-        return (
-            f"it widens the gap from {current.total:.2f} to {new.total:.2f} "
-            f"(> {threshold:g} null sd of {scale:.2f})"
-        )
+    if not current.diverged and new.total >= current.total:
+        return f"it does not narrow the gap ({current.total:.2f} -> {new.total:.2f})"
     return None
 
 
@@ -228,8 +221,8 @@ def diagnose(
         False-alarm rate of a round: the probability of naming an effect when none of
         the candidates is present.
     threshold : float
-        Robust z of a gap: the base gap is significant beyond it, and an effect whose
-        model widens the gap by more is vetoed.
+        Robust z beyond which the base gap is significant (reported when nothing is named:
+        an effect outside the candidates).
     max_effects : int, optional
         Stop after naming this many effects (default: as many as are supported).
     posterior : {"emcee", "screen"}
@@ -307,7 +300,7 @@ def diagnose(
                 stage(f"fit + {c} ({posterior})", grow=1)
                 try:
                     new = check(current.model.with_term(c), path_ss, posterior)
-                    why = _veto(current, new, threshold)
+                    why = _veto(current, new)
                 except HosidInputError as exc:
                     why = f"fitting it failed ({exc})"
                 bar.update()

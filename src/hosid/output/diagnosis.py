@@ -11,7 +11,8 @@ r"""The report of :func:`hosid.check.diagnose.diagnose`: figures, ``report.json`
   of every named effect's parameter, its null marked;
 - ``gaps.png`` (:func:`gap_figure`): the total gap of the base model, of every
   screened first-round candidate and of each model along the named steps, with the
-  base model's null band and the veto line;
+  base model's null band and the base gap (a named step must fall below the gap before
+  it);
 - ``measure_gaps.png`` (:func:`measure_gap_figure`): the gap :math:`G_m` of every
   measure for every model, so that one sees which measure each effect closes;
 - ``measures.png`` (:func:`measures_figure`): the record's standardized distance
@@ -96,15 +97,8 @@ def gap_figure(diag: Diagnosis) -> Figure:
         ax.axvspan(
             float(null.min()), float(null.max()), color="0.88", zorder=0, label="base null range"
         )
-    if math.isfinite(diag.base.total) and null.size:
-        k = diag.settings.get("threshold", 3.0)
-        mad = 1.4826 * float(np.median(np.abs(null - np.median(null))))
-        ax.axvline(
-            diag.base.total + k * mad,
-            color="tab:red",
-            ls="--",
-            label=f"veto: base + {k:g} null sd",
-        )
+    if math.isfinite(diag.base.total):
+        ax.axvline(diag.base.total, color="tab:red", ls="--", label="base gap")
     ax.axvline(1.0, color="k", lw=0.6)
     ax.set_xlabel("total gap G (replicate standard deviations)")
     if ax.get_legend_handles_labels()[0]:
