@@ -141,7 +141,10 @@ def confusion(rows: list[dict], min_strength: float = 3.0) -> str:
 
 def two_effects(rows: list[dict]) -> str:
     """Records with two hidden effects: both named, the order, the gaps after each step."""
-    head = "| regime | hidden | records | both named | exactly | gap fell each step | named |"
+    head = (
+        "| regime | hidden | records | both named | exactly | gap fell each step "
+        "(finite gaps) | named |"
+    )
     lines = [head, "|---|---|---|---|---|---|---|"]
     groups = defaultdict(list)
     for r in _ok(rows):
@@ -149,7 +152,7 @@ def two_effects(rows: list[dict]) -> str:
             groups[(r["regime"], r["hidden"], r["strength"])].append(r)
     for (regime, hidden, s), rs in sorted(groups.items()):
         named = Counter(r["named"] for r in rs)
-        shrank = [r for r in rs if r["shrank"] != ""]
+        shrank = [r for r in rs if r["shrank"] != "" and not any(np.isinf(_gaps(r)[1:]))]
         hit, exact = sum(int(r["hit"]) for r in rs), sum(int(r["exact"]) for r in rs)
         fell = sum(int(r["shrank"]) for r in shrank)
         which = ", ".join(f"{k} x{v}" for k, v in named.items())
@@ -160,15 +163,26 @@ def two_effects(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _gaps(row: dict) -> list[float]:
+    return [float(g) for g in row["gaps"].split(";")]
+
+
 def gap_shrink(rows: list[dict]) -> str:
-    """How often the gap fell at every step, among records that named something."""
+    """How often the gap fell at every step, among records that named something; steps
+    whose models' simulations all diverge (an infinite gap before and after) apart.
+    """
     named = [r for r in _ok(rows) if r["named"] != "none"]
-    right = [r for r in named if int(r["exact"])]
-    s_all = sum(int(r["shrank"]) for r in named)
-    s_right = sum(int(r["shrank"]) for r in right)
+    diverged = [r for r in named if any(np.isinf(_gaps(r)[1:]))]
+    finite = [r for r in named if r not in diverged]
+    right = [r for r in finite if int(r["exact"])]
+    fell = sum(int(r["shrank"]) for r in finite)
     return (
-        f"The gap fell at every step in {s_all} of {len(named)} records that named something "
-        f"({s_right} of {len(right)} that named exactly the hidden effects).\n"
+        f"Of {len(named)} records that named something, {len(diverged)} named an effect whose "
+        "model's posterior-predictive simulations diverged as the model before it did (an "
+        "infinite gap before and after: the gap cannot judge, the evidence decided). In the "
+        f"other {len(finite)} the gap fell at every step in {fell} "
+        f"({sum(int(r['shrank']) for r in right)} of the {len(right)} that named exactly the "
+        "hidden effects).\n"
     )
 
 

@@ -422,6 +422,17 @@ def test_rounds_name_in_order_veto_and_stop(clean_1000, monkeypatch):
     assert "max_effects" in d.decision
 
 
+def test_the_gap_vetoes_only_when_it_can_judge():
+    from hosid.check.diagnose import _veto
+
+    paper = ("paper",)
+    fin, worse, inf = (_fake_check(g, paper) for g in (2.0, 2.5, math.inf))
+    assert _veto(fin, _fake_check(1.9, paper)) is None
+    assert "does not narrow" in _veto(fin, worse) and "does not narrow" in _veto(fin, fin)
+    assert "diverge" in _veto(fin, inf)
+    assert _veto(inf, inf) is None and _veto(inf, fin) is None  # no finite gap to compare
+
+
 def _ev_stub(effect, p):
     from hosid.check.evidence import COORDINATES, Evidence
 

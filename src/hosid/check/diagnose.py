@@ -11,9 +11,10 @@ emcee, or the cheaper screened posterior), measures its posterior-predictive gap
    ``alpha`` for the round, whatever the number of candidates);
 2. **add** the supported candidate with the smallest p-value, fit the extended model and
    measure its gap: the gap **vetoes** the effect when the extended model's simulations
-   diverge or its gap does not fall below the current one (then the next supported
-   candidate is tried): an effect is named only if the model with it predicts the record
-   better;
+   diverge while the current model's do not, or its gap does not fall below the current
+   one (then the next supported candidate is tried): an effect is named only if the model
+   with it predicts the record better.  When both models' simulations diverge the gap
+   says nothing and the evidence decides;
 
 until no candidate is supported (or ``max_effects`` are named).  The three numbers of
 every candidate (:math:`z`, :math:`D`, its calibrated p-value) are kept for each round;
@@ -160,9 +161,11 @@ def _candidates(base: Model, candidates: Sequence[str] | None) -> list[str]:
 
 def _veto(current: ModelCheck, new: ModelCheck) -> str | None:
     """Why the extended model's gap vetoes its effect (module docstring), or ``None``."""
+    if current.diverged:  # no finite gap to compare with
+        return None
     if new.diverged:
         return "its posterior-predictive simulations diverge"
-    if not current.diverged and new.total >= current.total:
+    if new.total >= current.total:
         return f"it does not narrow the gap ({current.total:.2f} -> {new.total:.2f})"
     return None
 
