@@ -209,12 +209,14 @@ def figure(curves: dict, path: Path) -> None:
 
     fig = Figure(figsize=(7.5, 4.5), layout="constrained")
     ax = fig.subplots()
+    colors = {e: f"C{i}" for i, e in enumerate(COORD)}  # one colour an effect
     for key, curve in sorted(curves.items()):
         if not curve:
             continue
         s, p = zip(*curve, strict=True)
         ls = "-" if key[0] == "paper_S100" else "--"
-        ax.plot(s, p, ls, marker="o", label=f"{SHORT[key[2]]} ({key[0]}, {key[1]})")
+        ax.plot(s, p, ls, color=colors[key[2]], marker="o" if ls == "-" else "s",
+                label=f"{SHORT[key[2]]} ({key[0]}, {key[1]})")  # fmt: skip
     ax.set_xscale("log")
     ax.set_xlabel("strength (Cramer-Rao sd of the effect's coordinate)")
     ax.set_ylabel("share of records naming it")
