@@ -14,9 +14,11 @@ coordinate and the quasi-likelihood ratio :math:`D_c` with its asymptotic p-valu
    .. math:: p^*_c = \frac{1 + \#\{r: \min_{c'} p_{c'}^{(r)} \le p_c\}}{R + 1},
 
    and :math:`P(\min_c p^*_c \le \alpha) \le \alpha` when no candidate is present,
-   whatever the tests' finite-sample distributions and correlations (measured: the
-   asymptotic :math:`\chi^2` references alone, with Bonferroni's :math:`\alpha/m`, named
-   an effect in 9-11 % of clean records at :math:`\alpha = 5\%`).  With :math:`R = 20`,
+   whatever the tests' finite-sample distributions and correlations.  (The asymptotic
+   :math:`\chi^2` references alone, with Bonferroni's :math:`\alpha/m`, would have named
+   an effect in 4 of the power study's 60 clean records at :math:`\alpha = 5\%`, and,
+   with a first version of the screening, in 22 of 200 clean records of the independent
+   simulator: the ratios' tails are heavier than :math:`\chi^2`'s.)  With :math:`R = 20`,
    :math:`p^*_c \le 0.05` means that no null record was as extreme.  When no candidate
    reaches :math:`p_c \le \alpha` the replicates are not screened (the calibration cannot
    reject then), and the screening of the replicates stops as soon as enough of them are
