@@ -1,10 +1,12 @@
 """Issue 4: the confusion table of the discrepancy workflow (hidden vs named effect).
 
 For every scenario (one hidden effect that the base model lacks, or none) records are
-simulated, ``hosid.check.diagnose.diagnose`` is run with its defaults, and the named effect, the
-gaps before and after, and whether the final model's 90 % intervals cover the true
-parameters are written to ``confusion.csv`` (one row per record, appended as soon as
-it is done) and summarized in ``confusion.md``.
+simulated, ``hosid.check.diagnose.diagnose`` is run with its defaults, and the named
+effects (joined by ``+``), the gaps before and after, and whether the final model's 90 %
+intervals cover the true parameters are written to ``confusion.csv`` (one row per
+record, appended as soon as it is done) and summarized in ``confusion.md``.  (Issue 15's
+power study, ``diagnose_power.py``, measures the same against the information limit on
+the independent simulator's records.)
 
     python analyses/diagnose_confusion.py                      # 5 records per scenario
     python analyses/diagnose_confusion.py --records 2 --quick  # a smoke run
@@ -150,26 +152,26 @@ def run_one(args: tuple[str, int, int, float, int]) -> dict:
     for p, (lo, hi) in final["interval90"].items():
         true = truth.get(p, 0.0)
         covered.append(int(lo <= true <= hi))
-    ok = [c for c in rep["candidates"] if c["gap_after"] is not None and "error" not in c]
-    others = [c for c in ok if c["effect"] != rep["named_effect"]]
+    ok = [c for c in rep["candidates"] if c.get("gap") is not None and "error" not in c]
+    others = [c for c in ok if c["effect"] not in rep["named_effects"]]
     return {
         "scenario": name,
         "record": index,
         "base": base,
         "hidden": hidden or "none",
-        "named": rep["named_effect"] or "none",
-        "correct": int((rep["named_effect"] or None) == hidden),
+        "named": "+".join(rep["named_effects"]) or "none",
+        "correct": int(rep["named_effects"] == ([hidden] if hidden else [])),
         "gap_before": round(rep["gap_before"], 3),  # inf if the base diverges
         "z_before": round(rep["z_before"], 2),
         "p_before": round(rep["p_before"], 3),
         "gap_after": round(rep["gap_after"], 3),
         "ratio": round(rep["gap_after"] / rep["gap_before"], 3),
-        "best_other": f"{others[0]['effect']}={others[0]['gap_after']:.2f}" if others else "",
+        "best_other": f"{others[0]['effect']}={others[0]['gap']:.2f}" if others else "",
         "covered": sum(covered),
         "n_params": len(covered),
         "seconds": round(time.perf_counter() - t0, 1),
         "estimate": json.dumps({k: round(v, 5) for k, v in final["estimate"].items()}),
-        "candidate_gaps": json.dumps({c["effect"]: round(c["gap_after"], 3) for c in ok}),
+        "candidate_gaps": json.dumps({c["effect"]: round(c["gap"], 3) for c in ok}),
         "null_gaps": json.dumps([round(g, 3) for g in rep["base_fit"]["null_gaps"]]),
     }
 
@@ -214,7 +216,7 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--only", nargs="*", default=None, help="scenario names")
     ap.add_argument("--weak", action="store_true", help="also the weaker strengths (WEAK)")
-    ap.add_argument("--quick", action="store_true", help="600 s records, 8 replicates")
+    ap.add_argument("--quick", action="store_true", help="600 s records, 19 replicates")
     ap.add_argument("--replot", action="store_true", help="rewrite the table from the CSV")
     ap.add_argument("--append", action="store_true", help="add rows to an existing CSV")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "out")
@@ -223,7 +225,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     path = out / "confusion.csv"
     if not a.replot:
-        duration, reps = (600.0, 8) if a.quick else (a.duration, a.replicates)
+        duration, reps = (600.0, 19) if a.quick else (a.duration, a.replicates)
         names = a.only or list(DEFAULT) + (list(WEAK) if a.weak else [])
         unknown = [n for n in names if n not in SCENARIOS]
         if unknown:

@@ -39,6 +39,23 @@ quantity; a second run with 60 records each (other seeds; BAOAB with 10 and 40
 sub-steps, Heun with 10 and 40) gave E[x^2] 1.3167, 1.3162, 1.3151, 1.3145 (se 0.002),
 E[v^2] 53.19, 53.25, 53.13, 53.10 (se 0.07) and kurt(v) 2.4950, 2.4973, 2.4950, 2.4979
 (se 0.002): no step-size or scheme effect is visible at this precision.
+
+The candidate effects of ``hosid diagnose`` are optional keys (absent = 0), for the
+power study (``diagnose_power.py``):
+
+* ``b2`` (x^2 spring) and ``m`` (mean force) join the restoring kick B:
+  ``v += h/2 (m - a2 x - b2 x^2 - n2 x^3)``;
+* ``mu`` (Coulomb friction ``mu sign(v)``) joins the damping flow O as its own exact
+  flow, ``v -> sign(v) max(|v| - mu t, 0)`` (sticking at rest), applied for ``h/4``
+  around each Bernoulli half flow;
+* ``wc`` (the force through the low-pass ``g' = wc (w - g)``, spectrum
+  ``S0 wc^2 / (wc^2 + w^2)``): the O step's kick is the force's exact impulse over the
+  sub-step, drawn jointly with the force's next value (both Gaussian given the force
+  now: an exact Ornstein-Uhlenbeck step and its integral, two normals per sub-step);
+* ``noise_sd``: white noise added to the sampled displacement after the simulation.
+
+With none of them the random stream and the records are those of the paper-only
+simulator above.
 """
 
 from __future__ import annotations
@@ -56,32 +73,77 @@ __all__ = ["compare", "simulate"]
 
 CHUNK = 8192  # samples per noise chunk
 _KEYS = ("a1", "n1", "a2", "n2", "S0")
+#: Optional keys: the candidate effects (module docstring), 0 when absent.
+EFFECT_KEYS = ("b2", "mu", "m", "wc", "noise_sd")
+
+
+@numba.njit(cache=True, inline="always")
+def _friction(v, d):  # pragma: no cover - compiled
+    """Exact flow of ``v' = -mu sign(v)`` over a time with ``d = mu t``."""
+    if v > d:
+        return v - d
+    if v < -d:
+        return v + d
+    return 0.0
 
 
 @numba.njit(cache=True)
-def _baoab(xi, n_out, sub, h, a1, n1, a2, n2, sigma, state, xs, vs):  # pragma: no cover
-    """Advance ``state = [x, v]`` by ``n_out`` samples of ``sub`` splitting steps."""
+def _baoab(
+    xi, n_out, sub, h, a1, n1, a2, n2, b2, mu, m, sigma, wc, state, xs, vs
+):  # pragma: no cover - compiled
+    """Advance ``state = [x, v, g]`` by ``n_out`` samples of ``sub`` splitting steps.
+
+    White force (``wc == 0``): the O kick is ``sigma sqrt(h) xi[0, k]``.  Low-pass force
+    ``g = state[2]``: the kick is the force's exact impulse over ``h``, drawn jointly with
+    its next value from ``xi[0, k]`` and ``xi[1, k]``.
+    """
     hh = 0.5 * h
     e = math.exp(-a1 * hh)
     c = n1 * (1.0 - e) / a1 if a1 > 0.0 else n1 * hh
     s = sigma * math.sqrt(h)
+    d = 0.25 * mu * h
+    eg = one = l11 = l21 = l22 = 0.0
+    if wc > 0.0:
+        a = wc * h
+        eg = math.exp(-a)
+        one = -math.expm1(-a)  # 1 - e^{-wc h}
+        two = -math.expm1(-2.0 * a)  # 1 - e^{-2 wc h}
+        var_i = sigma * sigma * (a + 2.0 * math.expm1(-a) - 0.5 * math.expm1(-2.0 * a)) / wc
+        var_g = 0.5 * sigma * sigma * wc * two
+        l11 = math.sqrt(var_i)
+        l21 = sigma * sigma * (one - 0.5 * two) / l11
+        l22 = math.sqrt(max(var_g - l21 * l21, 0.0))
     x = state[0]
     v = state[1]
+    g = state[2]
     k = 0
     for i in range(n_out):
         for _ in range(sub):
-            v -= hh * (a2 * x + n2 * x * x * x)
+            v -= hh * (a2 * x + n2 * x * x * x + b2 * x * x - m)
             x += hh * v
+            if mu > 0.0:
+                v = _friction(v, d)
             v = v * e / (1.0 + c * abs(v))
-            v += s * xi[k]
+            if mu > 0.0:
+                v = _friction(v, d)
+            if wc > 0.0:
+                v += g * one / wc + l11 * xi[0, k]
+                g = g * eg + l21 * xi[0, k] + l22 * xi[1, k]
+            else:
+                v += s * xi[0, k]
             k += 1
+            if mu > 0.0:
+                v = _friction(v, d)
             v = v * e / (1.0 + c * abs(v))
+            if mu > 0.0:
+                v = _friction(v, d)
             x += hh * v
-            v -= hh * (a2 * x + n2 * x * x * x)
+            v -= hh * (a2 * x + n2 * x * x * x + b2 * x * x - m)
         xs[i] = x
         vs[i] = v
     state[0] = x
     state[1] = v
+    state[2] = g
 
 
 def _equivalent_damping(a1: float, n1: float, S0: float) -> float:
@@ -112,7 +174,8 @@ def simulate(
     ----------
     params : mapping
         ``a1, n1, a2, n2, S0`` (``a1, n1, n2 >= 0``, ``a1 + n1 > 0``, ``a2 > 0``,
-        ``S0 > 0``).
+        ``S0 > 0``) and optionally the effects ``b2, mu, m, wc, noise_sd`` (module
+        docstring; ``mu, wc, noise_sd >= 0``, ``b2`` only with ``n2 > 0``).
     duration, dt : float
         Record length and sampling interval (s).
     rng : numpy.random.Generator
@@ -129,7 +192,7 @@ def simulate(
     record : hosid.record.Record
         The sampled displacement.
     v : numpy.ndarray
-        The velocity at the same instants.
+        The velocity at the same instants (without measurement noise).
 
     Raises
     ------
@@ -140,11 +203,21 @@ def simulate(
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError("rng must be a numpy.random.Generator")
-    if set(params) != set(_KEYS):
-        raise ValueError(f"params must be exactly {', '.join(_KEYS)}, got {sorted(params)}")
+    missing = set(_KEYS) - set(params)
+    unknown = set(params) - set(_KEYS) - set(EFFECT_KEYS)
+    if missing or unknown:
+        raise ValueError(
+            f"params must hold {', '.join(_KEYS)} (optional: {', '.join(EFFECT_KEYS)}); "
+            f"missing {sorted(missing)}, unknown {sorted(unknown)}"
+        )
     a1, n1, a2, n2, S0 = (float(params[k]) for k in _KEYS)
+    b2, mu, m, wc, noise_sd = (float(params.get(k, 0.0)) for k in EFFECT_KEYS)
     if not (a1 >= 0 and n1 >= 0 and n2 >= 0 and a1 + n1 > 0 and a2 > 0 and S0 > 0):
         raise ValueError(f"parameters out of range: {dict(params)}")
+    if not (mu >= 0 and wc >= 0 and noise_sd >= 0 and (b2 == 0 or n2 > 0)):
+        raise ValueError(
+            f"effects out of range (mu, wc, noise_sd >= 0; b2 needs n2 > 0): {params}"
+        )
     if not (dt > 0 and duration > 0 and int(substeps) >= 1):
         raise ValueError("dt, duration and substeps must be positive")
     if burn_in is None:
@@ -153,23 +226,25 @@ def simulate(
     h = float(dt) / sub
     sigma = math.sqrt(2.0 * math.pi * S0)
     n_burn, n_out = round(burn_in / dt), round(duration / dt)
-    state = np.zeros(2)
+    state = np.zeros(3)
     xs, vs = np.empty(n_out), np.empty(n_out)
     scratch = np.empty((2, CHUNK))
+    coefficients = (a1, n1, a2, n2, b2, mu, m, sigma, wc)
     done = 0
     while done < n_burn + n_out:
-        m = min(CHUNK, n_burn + n_out - done)
-        xi = rng.standard_normal(m * sub)
-        if done + m <= n_burn:
-            _baoab(xi, m, sub, h, a1, n1, a2, n2, sigma, state, scratch[0], scratch[1])
-        else:
+        k = min(CHUNK, n_burn + n_out - done)
+        # one normal a sub-step for a white force (the paper-only stream), two for a low-pass
+        xi = rng.standard_normal((2, k * sub) if wc > 0 else (1, k * sub))
+        _baoab(xi, k, sub, h, *coefficients, state, *scratch)
+        if done + k > n_burn:
             lo = max(n_burn - done, 0)
-            _baoab(xi, m, sub, h, a1, n1, a2, n2, sigma, state, scratch[0], scratch[1])
-            a, b = done + lo - n_burn, done + m - n_burn
-            xs[a:b], vs[a:b] = scratch[0, lo:m], scratch[1, lo:m]
-        done += m
+            a, b = done + lo - n_burn, done + k - n_burn
+            xs[a:b], vs[a:b] = scratch[0, lo:k], scratch[1, lo:k]
+        done += k
     if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(vs))):
         raise ValueError("the simulated response escaped; reduce dt or raise substeps")
+    if noise_sd > 0:
+        xs = xs + noise_sd * rng.standard_normal(n_out)
     return Record(x=xs, dt=float(dt), name=name), vs
 
 

@@ -86,8 +86,7 @@ def main(quick: bool = False) -> str:
     ]
     for label, sec, tm, peak in rows:
         lines.append(
-            f"| {label} | {sec:.1f} | {tm['estimate']:.2f} | "
-            f"{tm['sampling']:.2f} | {peak:.0f} |"
+            f"| {label} | {sec:.1f} | {tm['estimate']:.2f} | {tm['sampling']:.2f} | {peak:.0f} |"
         )
 
     comps = components_for()

@@ -2,7 +2,8 @@
 
 The measure tests share 16 replicate records of 500 s (dt = 0.02) from the paper
 oscillator; the end-to-end tests diagnose 1000 s records (a hidden quadratic
-stiffness, and a clean record) with fewer replicates than the default.  Numbers quoted
+stiffness, and a clean record) with 19 replicates (the fewest a 5 % round can be
+calibrated with); the loop of rounds is tested with scripted evidence.  Numbers quoted
 in comments were measured on these records.
 """
 
@@ -19,7 +20,7 @@ from matplotlib.figure import Figure
 from scipy import stats
 
 import hosid.check.diagnose as dg
-from hosid.check.diagnose import _decide, diagnose
+from hosid.check.diagnose import diagnose
 from hosid.check.gaps import gaps, robust_z
 from hosid.check.measures import (
     ENERGY_LEVELS,
@@ -32,11 +33,19 @@ from hosid.check.measures import (
 )
 from hosid.check.model_check import check_model
 from hosid.check.posterior import screen_sample
+from hosid.check.selection import Round
 from hosid.check.statistics import potential
 from hosid.errors import HosidInputError
 from hosid.inference.estimate import estimate
 from hosid.model import PAPER_PARAMS, Model, simulate
-from hosid.output.diagnosis import gap_figure, measure_gap_figure, measures_figure, write_diagnosis
+from hosid.output.diagnosis import (
+    evidence_figure,
+    gap_figure,
+    measure_gap_figure,
+    measures_figure,
+    posterior_figure,
+    write_diagnosis,
+)
 from hosid.record import Record
 
 DT, DURATION, N_REPLICATES = 0.02, 500.0, 16
@@ -318,20 +327,18 @@ def test_diverging_draws_give_an_infinite_gap(clean_1000, monkeypatch):
     assert chk.failed_replicates == 5 and chk.p_value == 0.0
 
 
-def _stub(total, z):
-    return SimpleNamespace(total=total, z=z, diverged=not math.isfinite(total))
-
-
-def test_decision_rule():
-    cands = {"quadratic_stiffness": _stub(1.0, 0.0), "excitation_mean": _stub(2.5, 5.0)}
-    assert _decide(_stub(3.0, 8.0), cands, 3.0, 0.75)[0] == "quadratic_stiffness"
-    named, why = _decide(_stub(3.0, 2.0), cands, 3.0, 0.75)
-    assert named is None and "explains the record" in why
-    named, why = _decide(_stub(1.2, 4.0), cands, 3.0, 0.75)
-    assert named is None and "no candidate explains it" in why
-    named, why = _decide(_stub(math.inf, math.inf), cands, 3.0, 0.75)
-    assert named == "quadratic_stiffness" and "diverge" in why
-    assert _decide(_stub(3.0, 8.0), {}, 3.0, 0.75)[0] is None
+def test_check_keeps_its_replicate_records(clean_1000):
+    seeds = np.random.SeedSequence(3).spawn(8)
+    chk = check_model(
+        clean_1000, "paper", rng=np.random.default_rng(0), replicate_seeds=seeds,
+        method="screen", keep_replicates=True,
+    )  # fmt: skip
+    assert len(chk.replicates) == 8 == chk.draws.shape[0]
+    # each replicate is the model at its draw on its seed (common random numbers)
+    again = Model.from_spec("paper").simulate(
+        chk.draws[3], duration=clean_1000.duration, dt=DT, rng=np.random.default_rng(seeds[3])
+    )
+    np.testing.assert_array_equal(again.x[: clean_1000.n], chk.replicates[3].x)
 
 
 def test_bad_arguments(clean_1000):
@@ -342,78 +349,173 @@ def test_bad_arguments(clean_1000):
         diagnose(clean_1000, "paper", rng=rng, candidates=["cubic_stiffness"])
     with pytest.raises(HosidInputError, match="at least 8 replicates"):
         diagnose(clean_1000, "paper", rng=rng, replicates=3)
+    with pytest.raises(HosidInputError, match="needs at least 19 replicates"):
+        diagnose(clean_1000, "paper", rng=rng, replicates=12)
+    with pytest.raises(HosidInputError, match="needs at least 99 replicates"):
+        diagnose(clean_1000, "paper", rng=rng, alpha=0.01)
     with pytest.raises(HosidInputError, match="unknown model term"):
         diagnose(clean_1000, "papr", rng=rng)
-    with pytest.raises(HosidInputError, match="shrink"):
-        diagnose(clean_1000, "paper", rng=rng, shrink=2.0)
+    with pytest.raises(HosidInputError, match="alpha"):
+        diagnose(clean_1000, "paper", rng=rng, alpha=1.5)
+    with pytest.raises(HosidInputError, match="max_effects"):
+        diagnose(clean_1000, "paper", rng=rng, max_effects=-1)
+    with pytest.raises(HosidInputError, match="unknown posterior"):
+        diagnose(clean_1000, "paper", rng=rng, posterior="nuts")
     with pytest.raises(TypeError, match="Generator"):
         diagnose(clean_1000, "paper", rng=0)
+
+
+# ------------------------------------------------------ the loop, with stubs
+def _fake_check(total, names, null=(0.9, 1.0, 1.1, 1.0, 0.95, 1.05)):
+    model = Model.from_spec(list(names))
+    return SimpleNamespace(
+        model=model, total=total, diverged=not math.isfinite(total), replicates=[], draws=None,
+        theta_hat={}, gap={"null": np.array(null)}, z=robust_z(total, np.array(null)),
+        method="screen", sample=np.zeros((4, len(model.param_names))), hansen={},
+    )  # fmt: skip
+
+
+def test_rounds_name_in_order_veto_and_stop(clean_1000, monkeypatch):
+    # scripted evidence: round 1 supports friction (p 1e-9) and the mean (1e-5); the
+    # friction model widens the gap (vetoed), the mean is named; round 2 supports
+    # friction, named; round 3 supports nothing
+    gaps = {"excitation_mean": 1.5, "coulomb_friction": 4.0}
+    script = [
+        {"coulomb_friction": 1e-9, "excitation_mean": 1e-5, "quadratic_stiffness": 0.3},
+        {"coulomb_friction": 1e-6, "quadratic_stiffness": 0.2},
+        {"quadratic_stiffness": 0.4},
+    ]
+    seen = []
+
+    def fake_round(record, model, remaining, *, alpha, family, **kw):
+        seen.append((list(model.names), list(remaining), family))
+        ps = script[len(seen) - 1]
+        ev = {c: _ev_stub(c, p) for c, p in ps.items()}
+        return Round(model, ev, {}, alpha, family)
+
+    def fake_check(record, model, **kw):
+        added = [n for n in model.names if n in gaps]
+        if not added:
+            return _fake_check(3.0, model.names)
+        if added == ["coulomb_friction"]:
+            return _fake_check(gaps["coulomb_friction"], model.names)
+        return _fake_check(2.0 if len(added) == 1 else 1.2, model.names)
+
+    monkeypatch.setattr(dg, "weigh_round", fake_round)
+    monkeypatch.setattr(dg, "check_model", fake_check)
+    cands = ["coulomb_friction", "excitation_mean", "quadratic_stiffness"]
+    d = diagnose(clean_1000, "paper", rng=np.random.default_rng(0), candidates=cands,
+                 candidate_gaps=False)  # fmt: skip
+    assert d.named_effects == ["excitation_mean", "coulomb_friction"]
+    assert [s.gap_after for s in d.steps] == [2.0, 1.2] and d.gap_before == 3.0
+    assert "does not narrow the gap" in d.steps[0].vetoed["coulomb_friction"]
+    assert [s[1] for s in seen] == [cands, ["coulomb_friction", "quadratic_stiffness"],
+                                    ["quadratic_stiffness"]]  # fmt: skip
+    assert {s[2] for s in seen} == {3}  # Bonferroni's family is the first round's
+    assert "named excitation_mean" in d.decision and "then coulomb_friction" in d.decision
+    assert "no candidate supports a further effect" in d.decision
+    # max_effects stops after the first
+    seen.clear()
+    d = diagnose(clean_1000, "paper", rng=np.random.default_rng(0), candidates=cands,
+                 candidate_gaps=False, max_effects=1)  # fmt: skip
+    assert d.named_effects == ["excitation_mean"] and len(d.rounds) == 1
+    assert "max_effects" in d.decision
+
+
+def test_the_gap_vetoes_only_when_it_can_judge():
+    from hosid.check.diagnose import _veto
+
+    paper = ("paper",)
+    fin, worse, inf = (_fake_check(g, paper) for g in (2.0, 2.5, math.inf))
+    assert _veto(fin, _fake_check(1.9, paper)) is None
+    assert "does not narrow" in _veto(fin, worse) and "does not narrow" in _veto(fin, fin)
+    assert "diverge" in _veto(fin, inf)
+    assert _veto(inf, inf) is None and _veto(inf, fin) is None  # no finite gap to compare
+
+
+def _ev_stub(effect, p):
+    from hosid.check.evidence import COORDINATES, Evidence
+
+    z = float(stats.norm.isf(p / 2))
+    return Evidence(
+        effect, COORDINATES[effect], z, 1.0, z, z * z, p, "", {}, {}, {}, 1.0, 0.0, 0.0
+    )
 
 
 # ---------------------------------------------------------------- end to end
 @pytest.fixture(scope="module")
 def hidden_b2():
-    rec = _sim({**PAPER_PARAMS, "b2": 6.0}, 7, duration=1000.0)
-    return diagnose(rec, "paper", rng=np.random.default_rng(0), replicates=12)
+    # b2 = 6 on 600 s: about 12 CRB sd; the screened posterior (emcee: the slow test)
+    rec = _sim({**PAPER_PARAMS, "b2": 6.0}, 7, duration=600.0)
+    return diagnose(rec, "paper", rng=np.random.default_rng(0), replicates=19, posterior="screen")
 
 
 def test_hidden_quadratic_stiffness_is_named(hidden_b2):
     d = hidden_b2
-    assert d.named_effect == "quadratic_stiffness"
-    # over diagnose seeds 0-3: base gap 2.2-3.4 (z 5.5-12), screened 0.94-1.21, fitted
-    # 0.94-1.20 (x0.28-0.53 of the base gap); the next best candidate leaves 2.1-2.5
-    assert d.base.z >= 3.0 and d.gap_after <= 0.75 * d.gap_before
-    assert d.candidates["quadratic_stiffness"].total <= 0.75 * d.gap_before
-    others = [c.total for k, c in d.candidates.items() if k != "quadratic_stiffness"]
-    assert min(others) > 1.5 * d.candidates["quadratic_stiffness"].total
-    assert d.base.method == d.final.method == "emcee"
-    assert {c.method for c in d.candidates.values()} == {"screen"}
+    assert d.named_effects == ["quadratic_stiffness"]
+    st = d.steps[0]
+    # measured: z 13.2, D 162, calibrated p 1/20 (no replicate of the paper model came
+    # close); gap 2.4 -> 1.0
+    ev = st.round.evidence["quadratic_stiffness"]
+    assert ev.z > 8 and ev.p_value < 1e-12
+    assert st.round.adjusted("quadratic_stiffness") == pytest.approx(1 / 20)
+    assert d.gap_after < d.gap_before and st.gap_before == d.gap_before
+    assert d.base.method == d.final.method == "screen"
     assert set(d.candidates) == set(Model.from_spec("paper").candidates)
-    lo, hi = d.final.interval(0.9)["b2"]
-    assert lo <= 6.0 <= hi
-    assert "b2" in d.final_tree["posterior"].data_vars
+    post = st.posterior()
+    assert post["q05"] <= 6.0 <= post["q95"] and post["param"] == "b2"
+    # the second round found nothing more
+    assert len(d.rounds) == 2 and d.rounds[1].supported() == []
     rep = d.report()
     assert rep["final_model"] == [*rep["base"][:4], "quadratic_stiffness", "excitation_level"]
+    assert rep["named_effects"] == ["quadratic_stiffness"] and len(rep["gaps"]) == 2
     for key in ("hansen_before", "hansen_after"):
         assert set(rep[key]) == {"J", "df", "p_value"}
-    assert rep["hansen_after"]["df"] == rep["hansen_before"]["df"] + 1
-    for c in rep["candidates"]:
-        assert {"effect", "gap_after", "shrink", "z", "p_value", "estimate", "hansen"} <= set(c)
+    for c in rep["candidates"]:  # the three numbers of every candidate
+        assert {"effect", "z", "D", "p_value", "p_adjusted", "gap", "supported"} <= set(c)
+    assert rep["steps"][0]["posterior"]["mean"] == pytest.approx(post["mean"])
 
 
 def test_no_missing_effect_names_none(clean_1000, capsys):
-    real = dg.check_model
+    real = dg.weigh_round
 
-    def flaky(record, model, **kw):
-        if "coulomb_friction" in model.names:
-            raise HosidInputError("the estimating equations have no finite solution")
-        return real(record, model, **kw)
+    def flaky(record, model, remaining, **kw):
+        rnd = real(record, model, [c for c in remaining if c != "coulomb_friction"], **kw)
+        rnd.failed["coulomb_friction"] = "the estimating equations have no finite solution"
+        return rnd
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(dg, "check_model", flaky)
-        d = diagnose(clean_1000, "paper", rng=np.random.default_rng(1), replicates=12)
+        mp.setattr(dg, "weigh_round", flaky)
+        d = diagnose(
+            clean_1000, "paper", rng=np.random.default_rng(1), posterior="screen",
+            candidate_gaps=False,
+        )  # fmt: skip
     assert capsys.readouterr().err == ""  # progress=False: silent
-    # over diagnose seeds 1-4: base gap 0.94-1.03, z from -1.0 to -0.3
-    assert d.named_effect is None and d.base.z < 3.0
-    assert d.gap_after == d.gap_before and d.final is d.base
+    assert d.named_effects == [] and d.named_effect is None and d.final is d.base
+    assert d.gap_after == d.gap_before and "no candidate supports any effect" in d.decision
     rep = d.report()
-    assert rep["final_model"] == rep["base"]
-    failed = [c for c in rep["candidates"] if c["gap_after"] is None]
+    assert rep["final_model"] == rep["base"] and rep["steps"] == []
+    failed = [c for c in rep["candidates"] if "error" in c]
     assert [c["effect"] for c in failed] == ["coulomb_friction"]
     assert "no finite solution" in failed[0]["error"]
+    with pytest.raises(ValueError, match="not fitted with emcee"):
+        _ = d.final_tree
 
 
 def test_report_files(hidden_b2, tmp_path):
-    for fig in (gap_figure(hidden_b2), measure_gap_figure(hidden_b2), measures_figure(hidden_b2)):
-        assert isinstance(fig, Figure)
+    figs = (evidence_figure, posterior_figure, gap_figure, measure_gap_figure, measures_figure)
+    for make in figs:
+        assert isinstance(make(hidden_b2), Figure)
     paths = write_diagnosis(hidden_b2, tmp_path / "out")
     assert [p.name for p in paths[:2]] == ["report.json", "report.html"]
+    assert {p.name for p in paths} >= {"evidence.png", "posterior.png", "gaps.png"}
     assert all(p.is_file() for p in paths)
     rep = json.loads(paths[0].read_text())
     assert rep["named_effect"] == "quadratic_stiffness"
     text = paths[1].read_text()
-    assert text.count("data:image/png;base64,") == 3
-    assert "Named effect: quadratic_stiffness" in text and "Hansen" in text
+    assert text.count("data:image/png;base64,") == 5
+    assert "Named: quadratic_stiffness" in text and "Hansen" in text
+    assert "Wald z" in text and "calibrated p" in text
     # a diverged base: infinite gaps become null in JSON and "diverged" on the page
     base = hidden_b2.base
     gap = {
@@ -427,3 +529,42 @@ def test_report_files(hidden_b2, tmp_path):
     rep = json.loads(paths[0].read_text())
     assert rep["gap_before"] is None and rep["base_diverged"] is True
     assert "diverged" in paths[1].read_text()
+
+
+def _cli(tmp_path, params, extra):
+    from hosid.cli import main
+    from hosid.record import write_record
+
+    write_record(_sim(params, 12, duration=600.0), tmp_path / "rec.csv")
+    return main(
+        ["diagnose", str(tmp_path / "rec.csv"), "--candidates",
+         "excitation_mean,coulomb_friction", "--replicates", "19", "--seed", "3",
+         "--no-progress", "--out", str(tmp_path / "d"), *extra]
+    )  # fmt: skip
+
+
+def test_command_line(tmp_path, capsys):
+    from hosid.cli import main
+
+    code = _cli(tmp_path, {**PAPER_PARAMS, "m": 12.0}, ["--posterior", "screen"])
+    out = capsys.readouterr().out
+    assert code == 0 and "named: excitation_mean" in out and " -> " in out
+    assert (tmp_path / "d" / "report.html").is_file()
+    assert not (tmp_path / "d" / "posterior.nc").exists()  # screened: no emcee fit to save
+    assert main(["diagnose", "x.csv", "--alpha", "2", "--out", str(tmp_path / "e")]) == 2
+
+
+@pytest.mark.slow
+def test_command_line_with_emcee(tmp_path, capsys):
+    from hosid.output.results import load
+
+    code = _cli(tmp_path, {**PAPER_PARAMS, "m": 12.0, "mu": 25.0}, [])
+    out = capsys.readouterr().out
+    assert code == 0 and "named: excitation_mean, then coulomb_friction" in out
+    tree = load(tmp_path / "d" / "posterior.nc")
+    assert {"m", "mu"} <= set(tree["posterior"].data_vars)
+    rep = json.loads((tmp_path / "d" / "report.json").read_text())
+    # the paper model's own simulations may escape on this record (an infinite base gap,
+    # null in JSON); the named models' gaps fall
+    g = [math.inf if v is None else v for v in rep["gaps"]]
+    assert g[2] < g[1] < g[0]

@@ -66,6 +66,13 @@ def _nonnegative(text: str) -> float:
     return value
 
 
+def _probability(text: str) -> float:
+    value = _number(text)
+    if not 0 < value < 1:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
+    return value
+
+
 def _integer(minimum: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
         try:
@@ -227,16 +234,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     dia.add_argument("--replicates", type=_integer(4), default=20, help="default 20")
     dia.add_argument(
+        "--alpha",
+        type=_probability,
+        default=0.05,
+        help="false-alarm rate of each round (any candidate); default 0.05",
+    )
+    dia.add_argument(
         "--threshold",
         type=_positive,
         default=3.0,
-        help="robust z of the base gap for significance; default 3",
+        help="robust z of the base gap for significance (reported); default 3",
     )
     dia.add_argument(
-        "--shrink",
-        type=_positive,
-        default=0.75,
-        help="the named effect must cut the gap to this fraction; default 0.75",
+        "--max-effects", type=_integer(0), default=None, help="name at most this many effects"
+    )
+    dia.add_argument(
+        "--posterior",
+        choices=("emcee", "screen"),
+        default="emcee",
+        help="how the base and named models are fitted for their gaps; default emcee",
     )
     dia.add_argument("--seed", type=_integer(0), default=0, help="default 0")
     _record_options(dia)

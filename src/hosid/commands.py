@@ -341,16 +341,22 @@ def cmd_diagnose(args) -> int:
             rng=np.random.default_rng(args.seed),
             candidates=candidates,
             replicates=args.replicates,
+            alpha=args.alpha,
             threshold=args.threshold,
-            shrink=args.shrink,
+            max_effects=args.max_effects,
+            posterior=args.posterior,
             progress=not args.no_progress,
         )
-        save(diag.final_tree, stage / "posterior.nc")
-        names = ["posterior.nc", *(p.name for p in write_diagnosis(diag, stage))]
+        names = []
+        if diag.final.tree is not None:
+            save(diag.final_tree, stage / "posterior.nc")
+            names.append("posterior.nc")
+        names += [p.name for p in write_diagnosis(diag, stage)]
     out = Path(args.out)
     rep = diag.report()
-    print(f"base {' + '.join(rep['base'])}: gap {_fmt(rep['gap_before'])}")
-    print(f"named effect: {rep['named_effect'] or 'none'} - {rep['decision']}")
+    gaps = " -> ".join(_fmt(g) for g in rep["gaps"])
+    print(f"base {' + '.join(rep['base'])}: gap {gaps}")
+    print(f"named: {', then '.join(rep['named_effects']) or 'none'} - {rep['decision']}")
     print("wrote " + ", ".join(str(out / n) for n in names))
     return 0
 

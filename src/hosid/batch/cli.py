@@ -82,13 +82,19 @@ def _flags(base) -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
             "--threshold",
             "threshold",
             ("diagnose",),
-            {"type": base._positive, "metavar": "Z", "help": "default 3"},
+            {"type": base._positive, "metavar": "Z", "help": "base gap significance, default 3"},
         ),
         (
-            "--shrink",
-            "shrink",
+            "--alpha",
+            "alpha",
             ("diagnose",),
-            {"type": base._positive, "metavar": "F", "help": "default 0.75"},
+            {"type": base._positive, "metavar": "P", "help": "false alarms a round, default 0.05"},
+        ),
+        (
+            "--max-effects",
+            "max_effects",
+            ("diagnose",),
+            {"type": n(0), "metavar": "N", "help": "default: as many as supported"},
         ),
     )
 

@@ -32,6 +32,8 @@ import importlib
 import importlib.util
 import json
 import math
+import sys
+import zlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -215,12 +217,7 @@ def load_simulator(ref: str) -> Callable[..., Any]:
     where, _, func = ref.rpartition(":")
     try:
         if where.endswith(".py"):
-            name = "hosid_batch_simulator_" + str(abs(hash(where)))
-            spec = importlib.util.spec_from_file_location(name, where)
-            if spec is None or spec.loader is None or not Path(where).is_file():
-                raise HosidInputError(f"simulator file {where}: no such file")
-            module = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(module)
+            module = _import_file(Path(where))
         else:
             module = importlib.import_module(where)
     except HosidInputError:
@@ -231,6 +228,33 @@ def load_simulator(ref: str) -> Callable[..., Any]:
     if not callable(fn):
         raise HosidInputError(f"simulator {where} has no function {func!r}")
     return fn
+
+
+def _import_file(path: Path):
+    """Import a simulator file as the module named by its stem, registered in
+    ``sys.modules`` (so numba's on-disk cache and pickle find it by that name when the
+    script imports it too); a different module already of that name keeps it, and the
+    file gets a name of its own.
+    """
+    if not path.is_file():
+        raise HosidInputError(f"simulator file {path}: no such file")
+    name = path.stem
+    known = sys.modules.get(name)
+    if known is not None:
+        if Path(getattr(known, "__file__", "") or "").resolve() == path.resolve():
+            return known
+        name = f"hosid_batch_{name}_{zlib.crc32(str(path.resolve()).encode()):08x}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise HosidInputError(f"simulator file {path}: not a Python module")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+    return module
 
 
 def simulate(point: DesignPoint, *, rng: np.random.Generator) -> tuple[Record, np.ndarray | None]:

@@ -76,8 +76,9 @@ OPTIONS: dict[str, dict[str, Any]] = {
         "model": "paper",
         "candidates": None,
         "replicates": 20,
+        "alpha": 0.05,
         "threshold": 3.0,
-        "shrink": 0.75,
+        "max_effects": None,
     },
 }
 #: Files read as lists of records (one path or glob a line, ``#`` comments).

@@ -132,7 +132,7 @@ def _diagnose(record: Record, options: Mapping, rng, truths, keep: bool):
     tree = d.final_tree
     params, row = _draw_stats(tree)
     row.update(
-        named_effect=rep["named_effect"] or "",
+        named_effect="+".join(rep["named_effects"]),
         decision=rep["decision"],
         gap_before=rep["gap_before"],
         gap_after=rep["gap_after"],

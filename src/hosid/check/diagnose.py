@@ -1,40 +1,31 @@
-r"""The model-discrepancy workflow: find the gap, name the missing effect, close it.
+r"""The model-discrepancy workflow: name the missing effects, one at a time.
 
-:func:`diagnose` fits a base model with :func:`hosid.inference.fit.fit` (emcee), draws
-posterior-predictive replicate records from it (:meth:`hosid.model.Model.simulate` at
-posterior draws), and measures the record's gap :math:`G_0` from them
-(:func:`hosid.check.gaps.gaps`: a root mean square of replicate-standardized
-distances, about 1 for a record the model explains).  It then adds each candidate
-effect of :data:`hosid.model.CANDIDATES` not yet in the model and measures the new gap
-:math:`G_c` the same way.  Candidates are *screened* without a chain: the replicates'
-parameters are drawn from the Gaussian :math:`N(\hat\theta, \hat C)` of
-:func:`hosid.inference.estimate.estimate`, restricted to the priors and importance
-weighted to the calibrated quasi-posterior that :func:`~hosid.inference.fit.fit`
-samples (:func:`hosid.check.posterior.screen_sample`).  The named model is then fitted
-with emcee and its gap measured again from its posterior: that is the gap after.
+:func:`diagnose` fits the base model (:func:`hosid.check.model_check.check_model`:
+emcee, or the cheaper screened posterior), measures its posterior-predictive gap
+(:mod:`hosid.check.gaps`) and repeats rounds of
 
-Decision rule (both thresholds are arguments):
+1. **weigh** every candidate effect not yet in the model from the fit itself
+   (:mod:`hosid.check.evidence`: the Wald :math:`z` of the effect's parameter and the
+   quasi-likelihood ratio :math:`D`, both calibrated), and **calibrate** the round on
+   the model's own replicate records (:mod:`hosid.check.selection`: a false-alarm rate
+   ``alpha`` for the round, whatever the number of candidates);
+2. **add** the supported candidate with the smallest p-value, fit the extended model and
+   measure its gap: the gap **vetoes** the effect when the extended model's simulations
+   diverge while the current model's do not, or its gap does not fall below the current
+   one (then the next supported candidate is tried): an effect is named only if the model
+   with it predicts the record better.  When both models' simulations diverge the gap
+   says nothing and the evidence decides;
 
-1. The base gap must be significant.  The leave-one-out gaps of the replicates
-   (each scored against the other :math:`R - 1`) sample the null distribution of
-   :math:`G`; its robust standardization
-
-   .. math:: z_G = \frac{G_0 - \operatorname{med} G^{null}}
-                        {1.4826\,\operatorname{MAD} G^{null}}
-
-   must reach ``threshold`` (default 3).  Otherwise no effect is named.  (The rank
-   p-value :math:`(1 + \#\{G^{null} \ge G_0\})/(R + 1)` is reported too; with 10-20
-   replicates a single heavy-tailed leave-one-out gap can hide a gap of 4 or 5.)
-2. The best candidate :math:`c^* = \arg\min_c G_c` is named if its addition shrinks
-   the gap by the factor ``shrink``: :math:`G_{c^*} \le \text{shrink}\cdot G_0`.
+until no candidate is supported (or ``max_effects`` are named).  The three numbers of
+every candidate (:math:`z`, :math:`D`, its calibrated p-value) are kept for each round;
+with ``candidate_gaps`` the first round's candidates also get their predictive gap
+(screened posterior, for the report only: it does not enter the decision).
 
 Every model's replicates use the same random streams (one
-:class:`numpy.random.SeedSequence` spawned once: common random numbers), so that
-candidate gaps differ by their models and not by the noise of the replicates.  A draw
-whose simulation escapes is replaced by the next one (same stream); a model with more
-than ``R/2`` escaping draws cannot produce a stationary record like the observed one
-and gets an infinite gap.  Each model's Hansen test (:math:`J`, its degrees of freedom
-and p-value, from :func:`~hosid.inference.estimate.estimate`) is reported with it.
+:class:`numpy.random.SeedSequence` spawned once: common random numbers), so that gaps
+differ by their models and not by the noise of the replicates.  The base gap's
+significance (its robust z against the leave-one-out null, ``threshold``) is reported:
+a significant gap with no supported candidate points to an effect outside the list.
 """
 
 from __future__ import annotations
@@ -51,31 +42,77 @@ from ..errors import HosidInputError
 from ..model.model import Model, get_term
 from ..model.terms import CANDIDATES
 from ..record import Record
+from .evidence import COORDINATES
 from .measures import MeasureSpec
 from .model_check import ModelCheck, check_model
+from .selection import Round, weigh_round
 
-__all__ = ["Diagnosis", "ModelCheck", "check_model", "diagnose"]
+__all__ = ["Diagnosis", "ModelCheck", "Step", "check_model", "diagnose"]
 
 #: Fewest replicates :func:`diagnose` accepts (the null needs a robust spread).
 MIN_REPLICATES = 8
 
 
 @dataclass
+class Step:
+    """One named effect: the round that supported it, the fitted extended model, the gap
+    before and after, and the candidates the gap vetoed first.
+    """
+
+    effect: str
+    round: Round
+    check: ModelCheck
+    gap_before: float
+    vetoed: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def gap_after(self) -> float:
+        """The extended model's gap."""
+        return self.check.total
+
+    def posterior(self) -> dict[str, float]:
+        """The named parameter's posterior (draws of the check): mean, sd, quantiles."""
+        param = COORDINATES[self.effect].param
+        s = self.check.sample[:, self.check.model.index(param)]
+        q = np.quantile(s, [0.05, 0.25, 0.5, 0.75, 0.95])
+        mean, sd = float(np.mean(s)), float(np.std(s, ddof=1))
+        return {
+            "param": param,
+            "mean": mean,
+            "sd": sd,
+            "z": mean / sd if sd > 0 else math.inf,
+            **dict(zip(("q05", "q25", "q50", "q75", "q95"), q.tolist(), strict=True)),
+        }
+
+
+@dataclass
 class Diagnosis:
     """The result of :func:`diagnose`.
 
-    ``base`` and ``final`` are fitted with emcee (``final`` is ``base`` when no effect
-    is named); ``candidates`` holds the screened checks of every candidate that ran,
-    ``failed`` the candidates that could not be estimated and why.
+    ``base`` and ``final`` are the first and last models' checks (``final`` is ``base``
+    when nothing is named); ``steps`` the named effects in order; ``rounds`` every round
+    of evidence (one more than the steps unless the candidates ran out);
+    ``candidates`` the first round's candidates with their screened gaps.
     """
 
     base: ModelCheck
     candidates: dict[str, ModelCheck]
     final: ModelCheck
-    named_effect: str | None
     decision: str
     settings: dict[str, Any] = field(default_factory=dict)
     failed: dict[str, str] = field(default_factory=dict)
+    steps: list[Step] = field(default_factory=list)
+    rounds: list[Round] = field(default_factory=list)
+
+    @property
+    def named_effects(self) -> list[str]:
+        """Every named effect, in the order it was added."""
+        return [s.effect for s in self.steps]
+
+    @property
+    def named_effect(self) -> str | None:
+        """The first named effect (``None`` when nothing is named)."""
+        return self.steps[0].effect if self.steps else None
 
     @property
     def final_tree(self) -> xr.DataTree:
@@ -84,7 +121,7 @@ class Diagnosis:
         Raises
         ------
         ValueError
-            If the final check was not fitted with emcee (only a hand-built diagnosis).
+            If the final model was not fitted with emcee (``posterior="screen"``).
         """
         if self.final.tree is None:
             raise ValueError("the final model was not fitted with emcee")
@@ -97,55 +134,14 @@ class Diagnosis:
 
     @property
     def gap_after(self) -> float:
-        """The final model's total gap (measured on its emcee posterior)."""
+        """The final model's total gap."""
         return self.final.total
 
     def report(self) -> dict[str, Any]:
         """The ``report.json`` content (infinite gaps stay ``inf``; see ``jsonable``)."""
-        g0 = self.base.total
-        cands = []
-        for name, chk in sorted(self.candidates.items(), key=lambda kv: kv[1].total):
-            row = {
-                "effect": name,
-                "gap_after": chk.total,
-                "shrink": chk.total / g0 if math.isfinite(g0) else math.nan,
-                "p_value": chk.p_value,
-                "z": chk.z,
-                "explains": bool(chk.z < self.settings["threshold"]),
-                "measures": chk.gap["measures"],
-                "estimate": chk.theta_hat,
-                "interval90": chk.interval(0.9),
-                "hansen": chk.hansen,
-                "method": chk.method,
-                "ess": chk.info.get("ess"),
-                "seconds": chk.seconds,
-            }
-            if chk.diverged:
-                row["error"] = "its posterior-predictive simulations diverge"
-            cands.append(row)
-        for name, why in self.failed.items():
-            cands.append({"effect": name, "gap_after": None, "error": why})
-        screened = self.candidates.get(self.named_effect) if self.named_effect else None
-        return {
-            "named_effect": self.named_effect,
-            "base_diverged": self.base.diverged,
-            "gap_before": g0,
-            "gap_after": self.gap_after,
-            "gap_after_screen": screened.total if screened else None,
-            "p_before": self.base.p_value,
-            "p_after": self.final.p_value,
-            "z_before": self.base.z,
-            "z_after": self.final.z,
-            "hansen_before": self.base.hansen,
-            "hansen_after": self.final.hansen,
-            "decision": self.decision,
-            "base": list(self.base.model.names),
-            "final_model": list(self.final.model.names),
-            "candidates": cands,
-            "base_fit": self.base.summary(),
-            "final_fit": self.final.summary(),
-            "settings": self.settings,
-        }
+        from .report import diagnosis_report
+
+        return diagnosis_report(self)
 
 
 def _candidates(base: Model, candidates: Sequence[str] | None) -> list[str]:
@@ -163,26 +159,33 @@ def _candidates(base: Model, candidates: Sequence[str] | None) -> list[str]:
     return list(dict.fromkeys(cands))
 
 
-def _decide(base, checks, threshold, shrink) -> tuple[str | None, str]:
-    """The decision rule of the module docstring: ``(named effect, reason)``."""
-    prefix = "the base model's posterior-predictive simulations diverge; " if base.diverged else ""
-    if base.z < threshold:
-        return None, (
-            f"the base model explains the record: gap {base.total:.2f} is "
-            f"{base.z:.1f} < {threshold:g} robust sd above its null median; no effect named"
+def _veto(current: ModelCheck, new: ModelCheck) -> str | None:
+    """Why the extended model's gap vetoes its effect (module docstring), or ``None``."""
+    if current.diverged:  # no finite gap to compare with
+        return None
+    if new.diverged:
+        return "its posterior-predictive simulations diverge"
+    if new.total >= current.total:
+        return f"it does not narrow the gap ({current.total:.2f} -> {new.total:.2f})"
+    return None
+
+
+def _validate(replicates, alpha, threshold, max_effects, posterior) -> None:
+    if int(replicates) != replicates or replicates < MIN_REPLICATES:
+        raise HosidInputError(f"need at least {MIN_REPLICATES} replicates, got {replicates}")
+    if not (math.isfinite(alpha) and 0 < alpha < 1):
+        raise HosidInputError(f"alpha must be in (0, 1), got {alpha}")
+    need = math.ceil(1.0 / alpha - 1.0 - 1e-9)
+    if replicates < need:  # the smallest calibrated p-value is 1 / (R + 1)
+        raise HosidInputError(
+            f"a false-alarm rate of {alpha:g} needs at least {need} replicates, got {replicates}"
         )
-    if not checks:
-        return None, prefix + "the base gap is significant but there are no candidates to try"
-    best = min(checks, key=lambda c: checks[c].total)
-    g, g0 = checks[best].total, base.total
-    if g <= shrink * g0:
-        return best, prefix + (
-            f"adding {best} shrinks the gap from {g0:.2f} to {g:.2f} (x{g / g0:.2f} <= {shrink:g})"
-        )
-    return None, prefix + (
-        f"the base gap {g0:.2f} is significant (z = {base.z:.1f}) but no candidate "
-        f"explains it: the best, {best}, leaves {g:.2f} (x{g / g0:.2f} > {shrink:g})"
-    )
+    if not (math.isfinite(threshold) and threshold > 0):
+        raise HosidInputError(f"threshold must be positive, got {threshold}")
+    if max_effects is not None and (int(max_effects) != max_effects or max_effects < 0):
+        raise HosidInputError(f"max_effects must be a non-negative integer, got {max_effects}")
+    if posterior not in ("emcee", "screen"):
+        raise HosidInputError(f"unknown posterior {posterior!r}: emcee or screen")
 
 
 def diagnose(
@@ -192,12 +195,15 @@ def diagnose(
     rng: np.random.Generator,
     candidates: Sequence[str] | None = None,
     replicates: int = 20,
+    alpha: float = 0.05,
     threshold: float = 3.0,
-    shrink: float = 0.75,
+    max_effects: int | None = None,
+    posterior: str = "emcee",
+    candidate_gaps: bool = True,
     progress: bool = False,
 ) -> Diagnosis:
-    r"""Fit ``base``, measure its gap, try every candidate effect, name the one that
-    closes it and fit the named model (module docstring).
+    r"""Name the effects the record supports beyond ``base``, one round at a time
+    (module docstring).
 
     Parameters
     ----------
@@ -211,13 +217,24 @@ def diagnose(
         Effects to try; default every one of :data:`hosid.model.CANDIDATES` not in
         ``base``.
     replicates : int
-        Posterior-predictive replicates per model (at least 8).
+        Posterior-predictive replicates per model: the gap and the calibration of each
+        round (at least :math:`1/\alpha - 1`, 19 for 5 %: the smallest calibrated
+        p-value is :math:`1/(R + 1)`).
+    alpha : float
+        False-alarm rate of a round: the probability of naming an effect when none of
+        the candidates is present.
     threshold : float
-        The base gap is significant when its robust z reaches it.
-    shrink : float
-        The named effect must cut the gap to at most ``shrink`` times the base gap.
+        Robust z beyond which the base gap is significant (reported when nothing is named:
+        an effect outside the candidates).
+    max_effects : int, optional
+        Stop after naming this many effects (default: as many as are supported).
+    posterior : {"emcee", "screen"}
+        How the base and every named model are fitted for their gap: emcee
+        (:func:`hosid.inference.fit.fit`) or the screened quasi-posterior.
+    candidate_gaps : bool
+        Also measure the gap of every first-round candidate (report only).
     progress : bool
-        One progress bar over the workflow's steps.
+        One progress bar over the whole run, labelled with its stage.
 
     Returns
     -------
@@ -226,85 +243,96 @@ def diagnose(
     Raises
     ------
     HosidInputError
-        On unknown effect names, bad thresholds, too few replicates, or a base model
-        that cannot be fitted to the record.
+        On unknown effect names, bad settings, or a base model that cannot be fitted.
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError("rng must be a numpy.random.Generator")
     base_model = Model.from_spec(base)
     cands = _candidates(base_model, candidates)
-    if int(replicates) != replicates or replicates < MIN_REPLICATES:
-        raise HosidInputError(f"need at least {MIN_REPLICATES} replicates, got {replicates}")
-    if not (math.isfinite(threshold) and threshold > 0):
-        raise HosidInputError(f"threshold must be positive, got {threshold}")
-    if not 0 < shrink <= 1:
-        raise HosidInputError(f"shrink must be in (0, 1], got {shrink}")
+    _validate(replicates, alpha, threshold, max_effects, posterior)
+    limit = len(cands) if max_effects is None else min(int(max_effects), len(cands))
     spec = MeasureSpec.from_record(record)
-    root = np.random.SeedSequence(int(rng.integers(2**63 - 1)))
-    rep_ss, *streams = root.spawn(3 + len(cands))
+    rep_ss, path_ss, cand_ss = np.random.SeedSequence(int(rng.integers(2**63 - 1))).spawn(3)
     seeds = rep_ss.spawn(int(replicates))
-    gens = [np.random.default_rng(s) for s in streams]
+
+    def check(model, ss, method, keep=True):
+        gen = np.random.default_rng(ss.spawn(1)[0])
+        return check_model(
+            record, model, rng=gen, replicate_seeds=seeds, spec=spec, method=method,
+            keep_replicates=keep,
+        )  # fmt: skip
 
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=2 + len(cands), desc="diagnose", disable=not progress, leave=False)
+    total = 2 + (len(cands) if candidate_gaps else 0)
+    bar = tqdm(total=total, desc="diagnose", disable=not progress, leave=False)
+
+    def stage(text, grow=0):
+        bar.total += grow
+        bar.set_postfix_str(text)
+        bar.refresh()
+
+    steps: list[Step] = []
+    rounds: list[Round] = []
+    gaps_of: dict[str, ModelCheck] = {}
+    failed: dict[str, str] = {}
     try:
-        bar.set_postfix_str("fit base")
-        base_chk = check_model(record, base_model, rng=gens[0], replicate_seeds=seeds, spec=spec)
+        stage(f"fit base ({posterior})")
+        current = base_chk = check(base_model, path_ss, posterior)
         bar.update()
-        checks: dict[str, ModelCheck] = {}
-        failed: dict[str, str] = {}
-        for i, c in enumerate(cands):
-            bar.set_postfix_str(f"screen + {c}")
-            try:
-                checks[c] = check_model(
-                    record,
-                    base_model.with_term(c),
-                    rng=gens[2 + i],
-                    replicate_seeds=seeds,
-                    spec=spec,
-                    method="screen",
-                )
-            except HosidInputError as exc:
-                failed[c] = str(exc)
+        remaining = list(cands)
+        while remaining and len(steps) < limit:
+            stage(f"round {len(rounds) + 1}: weigh {len(remaining)} candidates", grow=1)
+            rnd = weigh_round(
+                record, current.model, remaining, start=current.theta_hat, alpha=alpha,
+                family=len(cands), replicates=current.replicates, starts=current.draws,
+            )  # fmt: skip
+            rounds.append(rnd)
             bar.update()
-        named, decision = _decide(base_chk, checks, threshold, shrink)
-        final = base_chk
-        if named is not None:
-            bar.set_postfix_str(f"fit + {named}")
-            try:
-                final = check_model(
-                    record,
-                    base_model.with_term(named),
-                    rng=gens[1],
-                    replicate_seeds=seeds,
-                    spec=spec,
-                )
-                decision += f"; the fitted model's gap is {final.total:.2f}"
-            except HosidInputError as exc:
-                decision += f"; but fitting it failed ({exc}): no effect named"
-                failed[named] = f"fit: {exc}"
-                named = None
-        bar.update()
+            if len(rounds) == 1:
+                failed.update(rnd.failed)
+                for c in cands if candidate_gaps else ():
+                    stage(f"gap + {c} (screen)")
+                    try:
+                        gaps_of[c] = check(current.model.with_term(c), cand_ss, "screen", False)
+                    except HosidInputError as exc:
+                        failed.setdefault(c, str(exc))
+                    bar.update()
+            vetoed: dict[str, str] = {}
+            for c in rnd.supported():
+                stage(f"fit + {c} ({posterior})", grow=1)
+                try:
+                    new = check(current.model.with_term(c), path_ss, posterior)
+                    why = _veto(current, new)
+                except HosidInputError as exc:
+                    why = f"fitting it failed ({exc})"
+                bar.update()
+                if why is None:
+                    steps.append(Step(c, rnd, new, current.total, dict(vetoed)))
+                    remaining.remove(c)
+                    current = new
+                    break
+                vetoed[c] = why
+            rnd.vetoed = vetoed
+            if not steps or steps[-1].round is not rnd:
+                break
+        bar.update(max(0, bar.total - bar.n))
     finally:
         bar.close()
     settings = {
         "replicates": int(replicates),
+        "alpha": float(alpha),
         "threshold": float(threshold),
-        "shrink": float(shrink),
+        "max_effects": limit,
+        "posterior": posterior,
         "candidates": cands,
         "duration": record.duration,
         "dt": record.dt,
         "block_seconds": spec.block * spec.dt,
         "omega_n": spec.omega_n,
-        "screening": "estimate + importance-weighted Gaussian draws",
     }
-    return Diagnosis(
-        base=base_chk,
-        candidates=checks,
-        final=final,
-        named_effect=named,
-        decision=decision,
-        settings=settings,
-        failed=failed,
-    )
+    from .report import decision_text
+
+    diag = Diagnosis(base_chk, gaps_of, current, "", settings, failed, steps, rounds)
+    diag.decision = decision_text(diag)
+    return diag

@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import HosidInputError
 from ..record import Record
 
-__all__ = ["compare_layout", "gaps", "robust_z"]
+__all__ = ["compare_layout", "gaps", "robust_scale", "robust_z"]
 
 
 def _standardize(obs: np.ndarray, reps: np.ndarray) -> np.ndarray:
@@ -115,6 +115,18 @@ def gaps(
     }
 
 
+def robust_scale(null: np.ndarray) -> tuple[float, float]:
+    r"""Median and :math:`1.4826\,\operatorname{MAD}` of the finite null gaps
+    (``nan`` when there are none).
+    """
+    null = np.asarray(null, dtype=float)
+    null = null[np.isfinite(null)]
+    if null.size == 0:
+        return math.nan, math.nan
+    med = float(np.median(null))
+    return med, max(1.4826 * float(np.median(np.abs(null - med))), 1e-12)
+
+
 def robust_z(total: float, null: np.ndarray) -> float:
     r"""A gap standardized robustly by its leave-one-out null gaps,
     :math:`(G - \operatorname{med} G^{null})/(1.4826\,\operatorname{MAD} G^{null})`
@@ -122,13 +134,8 @@ def robust_z(total: float, null: np.ndarray) -> float:
     """
     if not math.isfinite(total):
         return math.inf
-    null = np.asarray(null, dtype=float)
-    null = null[np.isfinite(null)]
-    if null.size == 0:
-        return math.nan
-    med = float(np.median(null))
-    mad = 1.4826 * float(np.median(np.abs(null - med)))
-    return (total - med) / max(mad, 1e-12)
+    med, scale = robust_scale(null)
+    return (total - med) / scale
 
 
 def compare_layout(record: Record, replicates: Sequence[Record]) -> None:

@@ -62,6 +62,8 @@ class ModelCheck:
         Draws whose simulation escaped.
     tree : xarray.DataTree or None
         The emcee fit (``method="emcee"`` only).
+    replicates : list of Record
+        The replicate records themselves (``keep_replicates=True`` only).
     info : dict
         Sampler numbers (``draws``; or ``ess``, ``proposals``, ``admissible``).
     """
@@ -79,6 +81,7 @@ class ModelCheck:
     failed_replicates: int = 0
     tree: xr.DataTree | None = None
     info: dict = field(default_factory=dict)
+    replicates: list[Record] = field(default_factory=list, repr=False)
 
     @property
     def total(self) -> float:
@@ -124,12 +127,13 @@ class ModelCheck:
         }
 
 
-def _replicates(record, model, sample, seeds, spec, drift, rng):
+def _replicates(record, model, sample, seeds, spec, drift, rng, keep):
     """Measures of one replicate per seed, each at the next posterior draw that does
-    not escape; ``None`` when more than half as many draws escape as there are seeds.
+    not escape (and the records, with ``keep``); ``None`` when more than half as many
+    draws escape as there are seeds.
     """
     order = rng.permutation(sample.shape[0])
-    reps, used, failed, k = [], [], 0, 0
+    reps, used, failed, k, records = [], [], 0, 0, []
     R = len(seeds)
     for seed in seeds:
         sim = None
@@ -147,12 +151,14 @@ def _replicates(record, model, sample, seeds, spec, drift, rng):
             if sim is None:
                 failed += 1
         if sim is None:
-            return None, np.array(used), failed
+            return None, np.array(used), failed, []
         if sim.n != record.n:
             sim = Record(x=sim.x[: record.n], dt=sim.dt)
         reps.append(measures(sim, spec=spec, drift=drift))
         used.append(theta)
-    return reps, np.array(used), failed
+        if keep:
+            records.append(sim)
+    return reps, np.array(used), failed, records
 
 
 def check_model(
@@ -163,6 +169,7 @@ def check_model(
     replicate_seeds: Sequence[np.random.SeedSequence],
     spec: MeasureSpec | None = None,
     method: str = "emcee",
+    keep_replicates: bool = False,
 ) -> ModelCheck:
     """Fit ``model`` and measure the record's gap from its posterior-predictive replicates.
 
@@ -182,6 +189,8 @@ def check_model(
         ``"emcee"``: :func:`hosid.inference.fit.fit` (its DataTree is kept in
         ``tree``); ``"screen"``: :func:`hosid.inference.estimate.estimate` and
         :func:`hosid.check.posterior.screen_sample` (module docstring).
+    keep_replicates : bool
+        Keep the replicate records (for the calibration of :mod:`hosid.check.selection`).
 
     Returns
     -------
@@ -210,7 +219,9 @@ def check_model(
         raise HosidInputError(f"unknown method {method!r}: emcee or screen")
     drift = drift_function(theta_hat)
     obs = measures(record, spec=spec, drift=drift)
-    reps, used, failed = _replicates(record, model, sample, replicate_seeds, spec, drift, rng)
+    reps, used, failed, records = _replicates(
+        record, model, sample, replicate_seeds, spec, drift, rng, keep_replicates
+    )
     if reps is not None:
         gap = gaps(obs, reps)
     else:  # more than half as many draws diverged as there are replicates
@@ -238,4 +249,5 @@ def check_model(
         failed_replicates=failed,
         tree=tree,
         info=info,
+        replicates=records,
     )

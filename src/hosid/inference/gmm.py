@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,7 +37,7 @@ from scipy import linalg, optimize, stats
 
 from ..components.base import Moments
 
-__all__ = ["QuasiLikelihood", "quasi_likelihood", "solve"]
+__all__ = ["QuasiLikelihood", "Transformed", "j_difference", "quasi_likelihood", "solve"]
 
 
 @dataclass
@@ -89,6 +89,57 @@ class QuasiLikelihood:
         """
         G = self.jacobian(theta, scale)
         return np.linalg.pinv(G.T @ G)
+
+
+@dataclass
+class Transformed(QuasiLikelihood):
+    r"""The same equations and weight in other coordinates :math:`u`,
+    :math:`\theta = \tau(u)` (``transform``): a parameter fixed at a value, or one
+    that is regular at a boundary null (e.g. :math:`1/\omega_c^2` for :math:`\omega_c`).
+    Every method of :class:`QuasiLikelihood` then works in :math:`u`.
+    """
+
+    transform: Callable[[np.ndarray], np.ndarray] = field(default=lambda u: u)
+
+    @classmethod
+    def of(cls, ql: QuasiLikelihood, transform: Callable) -> Transformed:
+        """``ql`` seen through ``transform`` (``u (..., q) -> theta (..., p)``)."""
+        return cls(ql.moments, ql.B, ql.L_inv, ql.slices, ql.info, transform)
+
+    def mean(self, theta) -> np.ndarray:
+        r"""Stacked block means at :math:`\tau(u)`."""
+        return super().mean(self.transform(np.asarray(theta, dtype=float)))
+
+
+def j_difference(
+    J_restricted: float,
+    J_free: float,
+    *,
+    df: int = 1,
+    boundary: bool = False,
+    dispersion: float = 1.0,
+) -> dict:
+    r"""The distance-metric test of a nested restriction (Newey & West 1987).
+
+    With one weight :math:`W` for both fits, :math:`D = J_{restricted} - J_{free}`
+    (the difference of Hansen statistics, i.e. twice the drop of the quasi-log-likelihood)
+    is :math:`\chi^2_{df}` under the restriction.  A single parameter whose null value
+    lies on the boundary of its space (a friction coefficient, a noise variance, the
+    inverse square of a filter corner: all :math:`\ge 0`) gives the chi-bar-square
+    :math:`\tfrac12\chi^2_0 + \tfrac12\chi^2_1` instead (Self & Liang 1987), so
+    :math:`p = \tfrac12 P(\chi^2_1 \ge D)` for :math:`D > 0`.  ``dispersion`` (Hansen's
+    :math:`J/(k-p)` when the calibration widens the posterior) divides :math:`D`.
+    """
+    if boundary and df != 1:
+        raise ValueError("the chi-bar-square reference is implemented for one parameter")
+    D = max(float(J_restricted) - float(J_free), 0.0) / float(dispersion)
+    if boundary:
+        p = 0.5 * float(stats.chi2.sf(D, 1)) if D > 0 else 1.0
+        ref = "chi-bar-square: 0.5 chi2(0) + 0.5 chi2(1)"
+    else:
+        p = float(stats.chi2.sf(D, df))
+        ref = f"chi2({df})"
+    return {"D": D, "p_value": p, "reference": ref, "df": int(df)}
 
 
 def quasi_likelihood(moments: Sequence[Moments], *, n_params: int) -> QuasiLikelihood:

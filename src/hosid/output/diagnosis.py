@@ -4,9 +4,15 @@ r"""The report of :func:`hosid.check.diagnose.diagnose`: figures, ``report.json`
 
 - ``report.json``: :meth:`hosid.check.diagnose.Diagnosis.report` (infinite gaps as
   ``null``);
+- ``evidence.png`` (:func:`evidence_figure`): every round's evidence for every
+  candidate, the Wald :math:`z` and the quasi-likelihood ratio's calibrated p-value,
+  with the thresholds of the decision;
+- ``posterior.png`` (:func:`posterior_figure`, when an effect is named): the posterior
+  of every named effect's parameter, its null marked;
 - ``gaps.png`` (:func:`gap_figure`): the total gap of the base model, of every
-  screened candidate and of the fitted final model, with the base model's null band
-  and the shrink threshold;
+  screened first-round candidate and of each model along the named steps, with the
+  base model's null band and the base gap (a named step must fall below the gap before
+  it);
 - ``measure_gaps.png`` (:func:`measure_gap_figure`): the gap :math:`G_m` of every
   measure for every model, so that one sees which measure each effect closes;
 - ``measures.png`` (:func:`measures_figure`): the record's standardized distance
@@ -29,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..check.evidence import critical_z
 from ..check.measures import component_labels
 from .files import b64, make_dir, png, render, write_atomic
 from .results import jsonable
@@ -37,10 +44,12 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..check.diagnose import Diagnosis
 
 __all__ = [
+    "evidence_figure",
     "gap_figure",
     "measure_gap_figure",
     "measures_figure",
     "moved_measures",
+    "posterior_figure",
     "render_html",
     "write_diagnosis",
 ]
@@ -49,11 +58,14 @@ _NAMED, _BASE, _OTHER = "tab:green", "0.45", "tab:blue"
 
 
 def _models(diag: Diagnosis) -> list[tuple[str, Any]]:
-    """``(label, check)`` of the base, every candidate and the fitted final model."""
-    rows = [("base (fit)", diag.base)]
-    rows += [(f"+ {c}", chk) for c, chk in diag.candidates.items()]
-    if diag.named_effect:
-        rows.append((f"+ {diag.named_effect} (fit)", diag.final))
+    """``(label, check)`` of the base, every screened candidate and each named step."""
+    fit = diag.base.method
+    rows = [(f"base ({fit})", diag.base)]
+    rows += [(f"+ {c} (screen)", chk) for c, chk in diag.candidates.items()]
+    names: list[str] = []
+    for st in diag.steps:
+        names.append(st.effect)
+        rows.append((f"step {len(names)}: + {' + '.join(names)} ({st.check.method})", st.check))
     return rows
 
 
@@ -66,9 +78,8 @@ def gap_figure(diag: Diagnosis) -> Figure:
     cap = 1.2 * float(finite.max()) if finite.size else 1.0
     diverged = ~np.isfinite(values)
     values = np.where(diverged, cap, values)
-    named = diag.named_effect
     colors = [
-        _BASE if i == 0 else (_NAMED if named and lab.startswith(f"+ {named}") else _OTHER)
+        _BASE if i == 0 else (_NAMED if lab.startswith("step") else _OTHER)
         for i, lab in enumerate(labels)
     ]
     fig = Figure(figsize=(7.5, 0.45 * len(rows) + 1.4), layout="constrained")
@@ -87,8 +98,7 @@ def gap_figure(diag: Diagnosis) -> Figure:
             float(null.min()), float(null.max()), color="0.88", zorder=0, label="base null range"
         )
     if math.isfinite(diag.base.total):
-        s = diag.settings.get("shrink", 0.75)
-        ax.axvline(s * diag.base.total, color="tab:red", ls="--", label=f"x{s:g} of the base gap")
+        ax.axvline(diag.base.total, color="tab:red", ls="--", label="base gap")
     ax.axvline(1.0, color="k", lw=0.6)
     ax.set_xlabel("total gap G (replicate standard deviations)")
     if ax.get_legend_handles_labels()[0]:
@@ -136,7 +146,8 @@ def measures_figure(diag: Diagnosis, names: Sequence[str] | None = None) -> Figu
     nrow = math.ceil(n / ncol)
     fig = Figure(figsize=(4.6 * ncol, 2.6 * nrow), layout="constrained")
     axes = np.atleast_1d(fig.subplots(nrow, ncol, squeeze=False)).ravel()
-    after_label = f"after: + {diag.named_effect}" if diag.named_effect else "after: base"
+    named = " + ".join(diag.named_effects)
+    after_label = f"after: + {named}" if named else "after: base"
     for ax, name in zip(axes, names, strict=False):
         zb = np.asarray(diag.base.gap["z"][name], dtype=float)
         za = np.asarray(diag.final.gap["z"][name], dtype=float)
@@ -153,6 +164,74 @@ def measures_figure(diag: Diagnosis, names: Sequence[str] | None = None) -> Figu
     for ax in axes[n:]:
         ax.set_visible(False)
     axes[0].legend(fontsize=7)
+    return fig
+
+
+def evidence_figure(diag: Diagnosis) -> Figure:
+    r"""Every round's evidence: the Wald :math:`|z|` and :math:`-\log_{10}` of the
+    calibrated and asymptotic p-values of each candidate, the decision's thresholds
+    (Bonferroni's Wald threshold, alpha) dashed.
+    """
+    rounds = diag.rounds or []
+    n = max(1, len(rounds))
+    fig = Figure(figsize=(9.0, 2.3 * n + 0.6), layout="constrained")
+    axes = np.atleast_2d(fig.subplots(n, 2, squeeze=False))
+    for k, rnd in enumerate(rounds):
+        names = sorted(rnd.evidence, key=lambda c: rnd.evidence[c].p_value)
+        y = np.arange(len(names))[::-1]
+        chosen = diag.steps[k].effect if k < len(diag.steps) else None
+        colors = [_NAMED if c == chosen else _OTHER for c in names]
+        z = [abs(rnd.evidence[c].z) for c in names]
+        lp = [-math.log10(max(rnd.adjusted(c), 1e-300)) for c in names]
+        lp_raw = [-math.log10(max(rnd.evidence[c].p_value, 1e-300)) for c in names]
+        ax_z, ax_p = axes[k]
+        ax_z.barh(y, z, color=colors)
+        for c, yy in zip(names, y, strict=True):
+            zc = critical_z(rnd.wald_level, rnd.evidence[c].coordinate.boundary)
+            ax_z.plot([zc, zc], [yy - 0.4, yy + 0.4], color="tab:red", ls="--", lw=1)
+        ax_z.set_yticks(y, names, fontsize=8)
+        ax_z.set_xlabel("|Wald z| of the effect's coordinate", fontsize=8)
+        ax_p.barh(y, lp, color=colors, label="calibrated")
+        ax_p.plot(lp_raw, y, "k|", ms=10, label="asymptotic")
+        ax_p.axvline(
+            -math.log10(rnd.alpha), color="tab:red", ls="--", label=f"alpha {rnd.alpha:g}"
+        )
+        ax_p.set_yticks(y, [""] * len(names))
+        top = max([*lp, *lp_raw, -math.log10(rnd.alpha)])
+        if top > 5:
+            ax_p.set_xscale("symlog", linthresh=2.0)
+        ax_p.set_xlim(0.0, 1.15 * top)
+        ax_p.set_xlabel("-log10 p of the quasi-likelihood ratio", fontsize=8)
+        ax_p.legend(fontsize=7, loc="lower right")
+        ax_z.set_title(
+            f"round {k + 1}: {len(names)} candidates against {len(rnd.model.names) - 1} terms",
+            fontsize=9,
+        )
+    if not rounds:
+        axes[0, 0].set_visible(False)
+        axes[0, 1].set_visible(False)
+    return fig
+
+
+def posterior_figure(diag: Diagnosis) -> Figure:
+    """Histograms of every named effect's parameter (the step's posterior draws)."""
+    n = max(1, len(diag.steps))
+    fig = Figure(figsize=(4.2 * n, 2.8), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, n, squeeze=False)).ravel()
+    for ax, st in zip(axes, diag.steps, strict=False):
+        post = st.posterior()
+        draws = st.check.sample[:, st.check.model.index(post["param"])]
+        ax.hist(draws, bins=40, color=_NAMED, alpha=0.8)
+        null = 0.0 if post["param"] != "wc" else None
+        if null is not None:
+            ax.axvline(null, color="k", lw=1.0, label="null")
+            ax.legend(fontsize=7)
+        ax.set_xlabel(post["param"])
+        ax.set_title(
+            f"{st.effect}: {post['mean']:.4g} +- {post['sd']:.2g} ({st.check.method})", fontsize=9
+        )
+    if not diag.steps:
+        axes[0].set_visible(False)
     return fig
 
 
@@ -193,8 +272,9 @@ def write_diagnosis(diag: Diagnosis, out_dir: str | Path) -> list[Path]:
     Returns
     -------
     list of Path
-        ``report.json``, ``report.html``, ``gaps.png``, ``measure_gaps.png`` and
-        ``measures.png``.
+        ``report.json``, ``report.html``, ``evidence.png``, ``gaps.png``,
+        ``measure_gaps.png``, ``measures.png`` and (when an effect is named)
+        ``posterior.png``.
 
     Raises
     ------
@@ -204,10 +284,13 @@ def write_diagnosis(diag: Diagnosis, out_dir: str | Path) -> list[Path]:
     out = make_dir(out_dir)
     rep = jsonable(diag.report())
     images = {
+        "evidence": png(evidence_figure(diag)),
         "gaps": png(gap_figure(diag)),
         "measure_gaps": png(measure_gap_figure(diag)),
         "measures": png(measures_figure(diag)),
     }
+    if diag.steps:
+        images["posterior"] = png(posterior_figure(diag))
     paths = [
         write_atomic(out / "report.json", json.dumps(rep, indent=1)),
         write_atomic(out / "report.html", render_html(rep, images)),

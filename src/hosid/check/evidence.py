@@ -1,0 +1,367 @@
+r"""Evidence for one candidate effect from the fit itself.
+
+For a model :math:`M` and a candidate effect :math:`c` (a term with one parameter
+:math:`\psi`, null value :math:`\psi_0` when :math:`M` is right), :func:`weigh` fits the
+extended model :math:`M + c` with the estimating equations of the default fit
+(:func:`hosid.inference.estimate.components_for`; the noise floor with measurement
+noise) and the efficient-GMM quasi-likelihood of :mod:`hosid.inference.gmm`, and returns
+two calibrated numbers:
+
+1. **Wald z**: the estimate of the effect's *regular coordinate* :math:`u` (below)
+   over its adjusted (Godambe) standard deviation,
+   :math:`z = \hat u/\mathrm{sd}(\hat u)`; with the optimal weight the curvature of the
+   quasi-likelihood is the inverse sandwich covariance, so :math:`z` is what the
+   calibrated posterior of :func:`hosid.inference.fit.fit` says about :math:`\psi`.
+2. **Quasi-likelihood ratio**: the distance-metric statistic
+   :math:`D = J(\hat\theta) |_{u=0} - J(\hat\theta)`, the difference of the Hansen
+   statistics of the fits with :math:`u = 0` and with :math:`u` free, with one weight
+   :math:`W` for both when both fits use the same equations (Newey & West 1987;
+   :func:`hosid.inference.gmm.j_difference`): :math:`\chi^2_1` for an interior null,
+   :math:`\tfrac12\chi^2_0 + \tfrac12\chi^2_1` when the null lies on the boundary of the
+   parameter space.
+
+The equations and their weight are prepared at ``start`` (the model's estimate) with
+the effect at its null, so the null fit is the model's own; the free fit of a drift
+effect or of the noise uses the same equations and weight.  The coloured force's free
+fit takes three rounds (:attr:`Coordinate.rounds`) from the corner :math:`2\omega_N` the
+fit starts from (:func:`hosid.inference.pilot.initial_theta`), each re-preparing the
+equations and their weight at its current estimate: the velocity restoration of the
+identities follows the corner only between rounds (a restoration frozen at the white
+value would let the input power :math:`\pi S_0\rho(\omega_c)` move without the velocity
+power that goes with it), and the weight of J2's corner equation scales with the
+corner.  Its Wald :math:`z` sees the slope of :math:`\rho` without that of the frozen
+restoration and overstates the evidence; the ratio :math:`D` does not.  When
+Hansen's test of the free fit rejects (:data:`hosid.inference.calibrate.HANSEN_P`) both
+numbers are deflated by its dispersion :math:`J/(k - p)`, as the posterior is widened.
+
+Regular coordinates (:data:`COORDINATES`): a drift coefficient is its own coordinate,
+null 0 (two-sided; Coulomb friction :math:`\mu \ge 0` one-sided).  A white force is the
+low-pass with :math:`\omega_c = \infty`: the coordinate is :math:`u = 1/\omega_c \ge 0`,
+regular for the input power :math:`\rho = \omega_c^2/(\omega_c^2 + c\omega_c + k)` of
+the identities (the likelihood ratio does not depend on the coordinate; the
+information limit, :func:`hosid.model.information.spectral_bound`, is stated in
+:math:`1/\omega_c^2`, regular for the sampled record's spectrum).  Measurement noise
+enters the spectra as :math:`\sigma_\epsilon^2`: :math:`u = \sigma_\epsilon^2 \ge 0`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from ..components.base import Component
+from ..components.noise import NoiseFloor
+from ..errors import HosidInputError
+from ..inference.calibrate import HANSEN_P
+from ..inference.estimate import (
+    components_for,
+    estimate,
+    log_params,
+    prepare_state,
+    typical_scale,
+)
+from ..inference.gmm import Transformed, j_difference, quasi_likelihood, solve
+from ..model.model import Model, get_term
+from ..record import Record
+from ..state import RecordState
+
+__all__ = ["COORDINATES", "Coordinate", "Evidence", "critical_z", "screen", "weigh"]
+
+#: A corner this high is a white force on any sampled band (``u = 1/wc = 0``).
+WHITE_CORNER = 1e7
+
+
+@dataclass(frozen=True)
+class Coordinate:
+    """How the test sees a candidate's parameter: ``u`` regular at the null ``u = 0``."""
+
+    param: str
+    label: str
+    boundary: bool  #: the null lies on the boundary of the parameter space (u >= 0)
+    kind: str = "identity"  #: "identity", "inverse" (wc) or "square" (noise_sd)
+    rounds: int = 1  #: fewest rounds of :func:`weigh` (module docstring)
+
+    def to_param(self, u):
+        """The model's parameter at coordinate ``u``."""
+        u = np.asarray(u, dtype=float)
+        if self.kind == "inverse":
+            return 1.0 / np.maximum(u, 1.0 / WHITE_CORNER)
+        if self.kind == "square":
+            return np.sqrt(np.maximum(u, 0.0))
+        return u
+
+    def to_u(self, value: float) -> float:
+        """The coordinate of a parameter value."""
+        if self.kind == "inverse":
+            return 0.0 if not value < WHITE_CORNER else 1.0 / float(value)
+        if self.kind == "square":
+            return float(value) ** 2
+        return float(value)
+
+    def bounds(self, lower: float, upper: float) -> tuple[float, float]:
+        """The coordinate's range from the parameter's prior support (the null included)."""
+        if self.kind == "inverse":
+            return 0.0, 1.0 / lower
+        if self.kind == "square":
+            return 0.0, upper**2
+        return (0.0 if self.boundary else lower), upper
+
+
+#: The regular coordinate of every candidate effect (module docstring).
+COORDINATES: dict[str, Coordinate] = {
+    "quadratic_damping": Coordinate("n1", "n1", False),
+    "cubic_stiffness": Coordinate("n2", "n2", False),
+    "quadratic_stiffness": Coordinate("b2", "b2", False),
+    "coulomb_friction": Coordinate("mu", "mu", True),
+    "excitation_mean": Coordinate("m", "m", False),
+    "coloured_excitation": Coordinate("wc", "1/wc", True, "inverse", rounds=3),
+    "measurement_noise": Coordinate("noise_sd", "noise_sd^2", True, "square"),
+}
+
+
+def critical_z(level: float, boundary: bool) -> float:
+    """The Wald threshold of a test at ``level``: one-sided at a boundary null."""
+    return float(stats.norm.isf(level if boundary else level / 2.0))
+
+
+@dataclass
+class Evidence:
+    """What the fit of ``model + effect`` says about the effect (module docstring).
+
+    ``u``/``u_sd``: the regular coordinate and its adjusted sd; ``z``: their ratio;
+    ``D``/``p_value``: the calibrated quasi-likelihood ratio and its p-value;
+    ``estimate``: the extended model's parameters; ``hansen``: its over-identification
+    test; ``dispersion``: the calibration's widening (1 when Hansen's test passes).
+    """
+
+    effect: str
+    coordinate: Coordinate
+    u: float
+    u_sd: float
+    z: float
+    D: float
+    p_value: float
+    reference: str
+    estimate: dict[str, float]
+    sd: dict[str, float]
+    hansen: dict[str, float]
+    dispersion: float
+    J_null: float
+    seconds: float
+
+    @property
+    def param(self) -> str:
+        """The effect's parameter."""
+        return self.coordinate.param
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain numbers for reports."""
+        return {
+            "effect": self.effect,
+            "param": self.param,
+            "coordinate": self.coordinate.label,
+            "boundary_null": self.coordinate.boundary,
+            "u": self.u,
+            "u_sd": self.u_sd,
+            "z": self.z,
+            "D": self.D,
+            "p_value": self.p_value,
+            "reference": self.reference,
+            "value": self.estimate[self.param],
+            "estimate": self.estimate,
+            "sd": self.sd,
+            "hansen": self.hansen,
+            "dispersion": self.dispersion,
+            "J_null": self.J_null,
+            "seconds": self.seconds,
+        }
+
+
+def components_for_test(model: Model, effect: str) -> list[Component]:
+    """The components that weigh ``effect`` against ``model``: those of the default fit
+    (:func:`hosid.inference.estimate.components_for`), with the noise floor when the
+    extended model has measurement noise.
+    """
+    comps = components_for()
+    if model.has("noise_sd") or effect == "measurement_noise":
+        comps.append(NoiseFloor())
+    return comps
+
+
+def _state(record, model, states) -> RecordState:
+    key = (not (model.has("b2") or model.has("m")), model.has("noise_sd"))
+    if states is None:
+        return prepare_state(record, model)
+    if key not in states:
+        states[key] = prepare_state(record, model)
+    return states[key]
+
+
+def weigh(
+    record: Record,
+    model: Model | str,
+    effect: str,
+    *,
+    start: Mapping[str, float],
+    rounds: int = 1,
+    states: dict | None = None,
+) -> Evidence:
+    """Fit ``model + effect`` and weigh the effect (module docstring).
+
+    Parameters
+    ----------
+    record : Record
+    model : Model or str
+        The model the effect would be added to.
+    effect : str
+        A candidate effect not in ``model`` (:data:`COORDINATES`).
+    start : mapping
+        ``model``'s estimate: the fits start there with the effect at its null.
+    rounds : int
+        Rounds of (prepare the equations at the current value, solve).  One round, with
+        the equations prepared at ``start`` and the effect at its null, is a test of the
+        null; a second round re-prepares them at the extended estimate (the estimate of
+        :func:`hosid.inference.estimate.estimate`), which changes the efficiency of a
+        strong effect's estimate, not the test's level.
+    states : dict, optional
+        A cache of record states shared by the candidates of one record.
+
+    Raises
+    ------
+    HosidInputError
+        If the extended model cannot be estimated on the record.
+    """
+    t0 = time.perf_counter()
+    model = Model.from_spec(model)
+    effect = get_term(effect).name
+    if effect not in COORDINATES:
+        raise HosidInputError(f"{effect} is not a candidate effect")
+    coord = COORDINATES[effect]
+    ext = model.with_term(effect)
+    state = _state(record, ext, states)
+    comps = components_for_test(model, effect)
+    names = ext.param_names
+    i = ext.index(coord.param)
+    support = ext.default_priors(state.scales, constrained=False)
+    lower = np.array([support[n].lower for n in names], dtype=float)
+    upper = np.array([support[n].upper for n in names], dtype=float)
+    lower[i], upper[i] = coord.bounds(support[coord.param].lower, support[coord.param].upper)
+    logs = [k for k in log_params(ext) if k != i]
+
+    def to_theta(u):
+        u = np.asarray(u, dtype=float)
+        th = u.copy()
+        th[..., i] = coord.to_param(u[..., i])
+        return th
+
+    null_value = float(coord.to_param(0.0))
+    theta = np.array([start.get(n, null_value) if n != coord.param else null_value for n in names])
+    u = theta.copy()
+    u[i] = 0.0
+    free = [k for k in range(len(names)) if k != i]
+
+    def fixed(v):
+        v = np.asarray(v, dtype=float)
+        return to_theta(np.insert(v, i, 0.0, axis=-1))
+
+    rounds = max(int(rounds), coord.rounds)
+    try:
+        ql = null = quasi_likelihood(
+            [c.prepare(state, ext, to_theta(u)) for c in comps], n_params=len(names)
+        )
+        scale = typical_scale(ext, state, to_theta(u))
+        scale[i] = max(abs(u[i]), 1e-3 * (upper[i] - lower[i]))
+        ql0 = Transformed.of(null, fixed)
+        v = solve(
+            ql0, u[free], log_params=[free.index(k) for k in logs], scale=0.1 * scale[free],
+            lower=lower[free], upper=upper[free],
+        )  # fmt: skip
+        J0 = float(-2.0 * ql0(v))
+        u[free] = v
+        if coord.kind == "inverse":  # start coloured, as the fit does (module docstring)
+            u[i] = 1.0 / support[coord.param].upper
+        for _ in range(rounds):
+            if u[i] != 0.0:  # the equations and their weight at the current estimate
+                ql = quasi_likelihood(
+                    [c.prepare(state, ext, to_theta(u)) for c in comps], n_params=len(names)
+                )
+            qlu = Transformed.of(ql, to_theta)
+            u = solve(qlu, u, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
+    except ValueError as exc:
+        raise HosidInputError(f"{effect}: {exc}") from None
+    if not np.all(np.isfinite(u)):
+        raise HosidInputError(f"{effect}: the estimating equations have no finite solution")
+    J = float(-2.0 * qlu(u))
+    df = ql.k - len(names)
+    p_hansen = float(stats.chi2.sf(J, df)) if df > 0 else math.nan
+    disp = J / df if df > 0 and p_hansen < HANSEN_P else 1.0
+    cov = qlu.laplace(u, scale) * disp
+    sd_u = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    z = float(u[i] / sd_u[i]) if u[i] != 0.0 and sd_u[i] > 0 else 0.0
+    test = j_difference(J0, J, boundary=coord.boundary, dispersion=disp)
+    theta = to_theta(u)
+    sd_theta = dict(zip(names, sd_u.tolist(), strict=True))
+    sd_theta[coord.param] = _param_sd(coord, float(u[i]), float(sd_u[i]))
+    return Evidence(
+        effect=effect,
+        coordinate=coord,
+        u=float(u[i]),
+        u_sd=float(sd_u[i]),
+        z=z,
+        D=test["D"],
+        p_value=test["p_value"],
+        reference=test["reference"],
+        estimate=ext.params(theta),
+        sd=sd_theta,
+        hansen={"J": J, "df": df, "p_value": p_hansen},
+        dispersion=disp,
+        J_null=J0,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def _param_sd(coord: Coordinate, u: float, sd_u: float) -> float:
+    """The parameter's sd by the delta method (infinite at a boundary estimate)."""
+    if coord.kind == "identity":
+        return sd_u
+    if u <= 0.0:
+        return math.inf
+    if coord.kind == "square":  # d sqrt(u) / du
+        return sd_u / (2.0 * math.sqrt(u))
+    return sd_u / u**2  # d (1/u) / du
+
+
+def screen(
+    record: Record,
+    model: Model,
+    candidates: Sequence[str],
+    *,
+    start: Mapping[str, float] | None = None,
+) -> tuple[dict[str, Evidence], dict[str, str]]:
+    """:func:`weigh` every candidate against ``model`` (one record, shared states).
+
+    ``start`` is ``model``'s estimate (default: :func:`hosid.inference.estimate.estimate`
+    of the record).  Returns the evidence by effect and the candidates that could not be
+    weighed, with why.
+
+    Raises
+    ------
+    HosidInputError
+        If ``model`` itself cannot be estimated (only when ``start`` is not given).
+    """
+    if start is None:
+        start = estimate(record, model).values
+    states: dict = {}
+    found, failed = {}, {}
+    for c in candidates:
+        try:
+            found[c] = weigh(record, model, c, start=start, states=states)
+        except HosidInputError as exc:
+            failed[c] = str(exc)
+    return found, failed

@@ -1,0 +1,192 @@
+r"""Which candidate effect a record supports: the decision of one round of ``diagnose``.
+
+A round weighs every candidate effect :math:`c = 1..m` against the current model
+(:func:`hosid.check.evidence.screen`: the Wald :math:`z_c` of the effect's regular
+coordinate and the quasi-likelihood ratio :math:`D_c` with its asymptotic p-value
+:math:`p_c`) and decides with a false-alarm rate :math:`\alpha` for the whole round:
+
+1. **Calibration of the round** (Westfall & Young 1993, single step).  The same
+   screening runs on :math:`R` records simulated from the current model (the
+   posterior-predictive replicates of its gap, so that the null holds for every
+   candidate); each gives :math:`\min_c p_c^{(r)}`.  The adjusted p-value of candidate
+   :math:`c` is
+
+   .. math:: p^*_c = \frac{1 + \#\{r: \min_{c'} p_{c'}^{(r)} \le p_c\}}{R + 1},
+
+   and :math:`P(\min_c p^*_c \le \alpha) \le \alpha` when no candidate is present,
+   whatever the tests' finite-sample distributions and correlations.  (The asymptotic
+   :math:`\chi^2` references alone, with Bonferroni's :math:`\alpha/m`, would have named
+   an effect in 4 of the power study's 60 clean records at :math:`\alpha = 5\%`, and,
+   with a first version of the screening, in 22 of 200 clean records of the independent
+   simulator: the ratios' tails are heavier than :math:`\chi^2`'s.)  With :math:`R = 20`,
+   :math:`p^*_c \le 0.05` means that no null record was as extreme.  When no candidate
+   reaches :math:`p_c \le \alpha` the replicates are not screened (the calibration cannot
+   reject then), and the screening of the replicates stops as soon as enough of them are
+   as extreme as the best candidate for the decision to be known (its :math:`p^*` are
+   then lower bounds, all above :math:`\alpha`).
+2. **The calibrated posterior agrees**: :math:`z_c` beyond the Bonferroni threshold of
+   level :math:`\alpha/m` (one-sided at a boundary null; :func:`critical_z`).
+3. Of the candidates that pass, the smallest :math:`p_c` comes first;
+   :func:`hosid.check.diagnose.diagnose` then fits it and lets its predictive gap veto it
+   (the third number, :mod:`hosid.check.gaps`).
+
+Without replicates (a model whose simulations diverge) the round falls back to
+Bonferroni: :math:`p_c \le \alpha/m`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import HosidInputError
+from ..inference.estimate import estimate
+from ..model.model import Model
+from ..record import Record
+from .evidence import Evidence, critical_z, screen
+
+__all__ = ["Round", "null_min_p", "weigh_round"]
+
+
+@dataclass
+class Round:
+    """One round's evidence and calibration (module docstring)."""
+
+    model: Model
+    evidence: dict[str, Evidence]
+    failed: dict[str, str]
+    alpha: float
+    family: int  #: m, the number of candidates of the first round
+    null_min_p: np.ndarray = field(default_factory=lambda: np.empty(0))
+    replicates: int = 0  #: R, the replicates available (more than screened when stopped)
+    calibrated: bool = False
+    seconds: float = 0.0
+    vetoed: dict[str, str] = field(default_factory=dict)  #: supported but vetoed by the gap
+
+    @property
+    def wald_level(self) -> float:
+        r"""The Bonferroni level :math:`\alpha/m` of each candidate's Wald test."""
+        return self.alpha / self.family
+
+    def adjusted(self, effect: str) -> float:
+        r"""The calibrated p-value :math:`p^*_c` (Bonferroni's :math:`m p_c` when the
+        round is not calibrated).
+        """
+        p = self.evidence[effect].p_value
+        if not self.calibrated:
+            return min(1.0, self.family * p)
+        return float((1 + np.sum(self.null_min_p <= p)) / (self.replicates + 1))
+
+    @property
+    def stopped(self) -> bool:
+        """The calibration stopped early: its p-values are lower bounds (all above
+        ``alpha``).
+        """
+        return self.calibrated and self.null_min_p.size < self.replicates
+
+    def wald_ok(self, effect: str) -> bool:
+        r"""The calibrated posterior excludes the null at level :math:`\alpha/m`."""
+        ev = self.evidence[effect]
+        z = ev.z if ev.coordinate.boundary else abs(ev.z)
+        return bool(z >= critical_z(self.wald_level, ev.coordinate.boundary))
+
+    def supported(self) -> list[str]:
+        """Candidates that pass steps 1 and 2, smallest :math:`p_c` first."""
+        ok = [c for c in self.evidence if self.adjusted(c) <= self.alpha and self.wald_ok(c)]
+        return sorted(ok, key=lambda c: (self.evidence[c].p_value, -self.evidence[c].D))
+
+    def best(self) -> str | None:
+        """The candidate with the smallest :math:`p_c` (supported or not)."""
+        if not self.evidence:
+            return None
+        return min(self.evidence, key=lambda c: (self.evidence[c].p_value, -self.evidence[c].D))
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain numbers for reports: every candidate's evidence and calibration."""
+        rows = []
+        for c, ev in sorted(self.evidence.items(), key=lambda kv: kv[1].p_value):
+            rows.append(
+                {
+                    **ev.as_dict(),
+                    "p_adjusted": self.adjusted(c),
+                    "wald_ok": self.wald_ok(c),
+                    "supported": c in self.supported(),
+                }
+            )
+        rows += [{"effect": c, "error": why} for c, why in self.failed.items()]
+        return {
+            "model": list(self.model.names),
+            "alpha": self.alpha,
+            "family": self.family,
+            "wald_level": self.wald_level,
+            "calibrated": self.calibrated,
+            "calibration_replicates": int(self.replicates),
+            "calibration_screened": int(self.null_min_p.size),
+            "calibration_stopped": self.stopped,
+            "null_min_p": self.null_min_p.tolist(),
+            "candidates": rows,
+            "vetoed": dict(self.vetoed),
+            "seconds": self.seconds,
+        }
+
+
+def null_min_p(
+    replicates: Sequence[Record],
+    model: Model,
+    candidates: Sequence[str],
+    starts: np.ndarray | None = None,
+    *,
+    stop: tuple[float, int] | None = None,
+) -> np.ndarray:
+    r""":math:`\min_c p_c` of the screening of each replicate record (module docstring);
+    replicates the model cannot be estimated on are left out.  ``starts`` (``(R, p)``,
+    the parameters each replicate was simulated at) replace the replicate's own estimate
+    as the screening's start.  ``stop = (p, K)`` ends the loop as soon as more than
+    ``K`` replicates reach :math:`\min_c p_c \le p` (the decision is then known).
+    """
+    out = []
+    for r, rep in enumerate(replicates):
+        try:
+            start = estimate(rep, model).values if starts is None else model.params(starts[r])
+            found, _ = screen(rep, model, candidates, start=start)
+        except HosidInputError:
+            continue
+        if found:
+            out.append(min(ev.p_value for ev in found.values()))
+        if stop is not None and np.sum(np.array(out) <= stop[0]) > stop[1]:
+            break
+    return np.array(out, dtype=float)
+
+
+def weigh_round(
+    record: Record,
+    model: Model,
+    candidates: Sequence[str],
+    *,
+    start: Mapping[str, float],
+    alpha: float,
+    family: int,
+    replicates: Sequence[Record] = (),
+    starts: np.ndarray | None = None,
+) -> Round:
+    r"""Screen the candidates on the record and, when one reaches :math:`p_c \le \alpha`,
+    on the replicates (module docstring; ``starts`` as in :func:`null_min_p`).
+    """
+    t0 = time.perf_counter()
+    found, failed = screen(record, model, candidates, start=start)
+    rnd = Round(model, found, failed, float(alpha), int(family))
+    best = min((ev.p_value for ev in found.values()), default=1.0)
+    if found and replicates and best <= alpha:
+        R = len(replicates)
+        # the best candidate is supported only if at most K replicates are as extreme
+        K = math.floor(alpha * (R + 1) - 1 + 1e-9)
+        rnd.null_min_p = null_min_p(replicates, model, list(found), starts, stop=(best, K))
+        rnd.replicates = R
+        rnd.calibrated = rnd.null_min_p.size > 0
+    rnd.seconds = time.perf_counter() - t0
+    return rnd

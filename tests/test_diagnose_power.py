@@ -1,0 +1,68 @@
+"""The power study of ``diagnose`` (analyses/diagnose_power.py) on tiny settings: one
+clean record and one with friction, 300 s each, resumed, summarized."""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ANALYSES = Path(__file__).resolve().parents[1] / "analyses"
+
+
+@pytest.fixture(scope="module")
+def power():
+    sys.path.insert(0, str(ANALYSES))
+    try:
+        import diagnose_power
+
+        yield diagnose_power
+    finally:
+        sys.path.remove(str(ANALYSES))
+
+
+def test_design_and_truth(power):
+    cells = {c["cell"]: c for c in power.design()}
+    assert cells["none:0@paper_S100/paper"]["records"] == 20
+    assert cells["coulomb_friction:5@paper_S100/paper"]["records"] == 10
+    assert cells["coulomb_friction:1@paper_S100/paper"]["records"] == 5
+    assert "quadratic_damping:3@paper_S100/linear" in cells
+    two = cells["quadratic_stiffness+coulomb_friction:5@ship_roll/paper"]
+    bounds = {("ship_roll", "paper", e): 0.01 for e in two["effects"]}
+    bounds[("paper_S100", "paper", "coloured_excitation")] = 4e-6
+    bounds[("paper_S100", "paper", "measurement_noise")] = 1e-6
+    t = power.truth(two, bounds)
+    assert t["mu"] == pytest.approx(0.05) and t["b2"] == pytest.approx(0.05)
+    wc = power.truth(cells["coloured_excitation:100@paper_S100/paper"], bounds)["wc"]
+    assert wc == pytest.approx(1 / np.sqrt(100 * 4e-6))
+    noise = power.truth(cells["measurement_noise:3@paper_S100/paper"], bounds)["noise_sd"]
+    assert noise == pytest.approx(np.sqrt(3e-6))
+    linear = power.truth(cells["cubic_stiffness:5@paper_S100/linear"], {
+        ("paper_S100", "linear", "cubic_stiffness"): 0.02})  # fmt: skip
+    assert linear["n2"] == pytest.approx(0.1) and linear["n1"] == 0.0
+    # a1 = a1eq of the paper oscillator at the power balance: a1eq s^2 = pi S0 with
+    # a1eq = a1 + n1 sqrt(8/pi) s
+    s = np.sqrt(np.pi * 100.0 / linear["a1"])
+    assert linear["a1"] == pytest.approx(0.5 + 0.5 * np.sqrt(8 / np.pi) * s, rel=1e-9)
+
+
+def test_tiny_run_resumes_and_summarizes(power, tmp_path):
+    cells = ["none:0@paper_S100/paper", "coulomb_friction:5@paper_S100/paper"]
+    args = ["--cells", *cells, "--records", "1", "--duration", "300", "--replicates", "19"]
+    assert power.main([*args, "--out", str(tmp_path)]) == 0
+    rows = sorted(power.read_csv(tmp_path / "power.csv"), key=lambda r: r["hidden"] != "none")
+    assert [r["cell"] for r in rows] == cells and all(r["error"] == "" for r in rows)
+    bounds = json.loads((tmp_path / "bounds.json").read_text())
+    assert bounds["paper_S100|paper|coulomb_friction"] == pytest.approx(1.37, rel=0.05)
+    assert json.loads(rows[1]["truth"])["mu"] == pytest.approx(5 * 1.37, rel=0.05)
+    assert set(json.loads(rows[0]["evidence"])) == {
+        "quadratic_stiffness", "coulomb_friction", "excitation_mean", "coloured_excitation",
+        "measurement_noise",
+    }  # fmt: skip
+    # resuming skips what is done
+    assert power.main([*args, "--out", str(tmp_path)]) == 0
+    assert len(power.read_csv(tmp_path / "power.csv")) == 2
+    text = (tmp_path / "power.md").read_text()
+    assert "## False alarms on clean records" in text and "| paper_S100 | paper | 1 |" in text
+    assert (tmp_path / "power.png").is_file()
