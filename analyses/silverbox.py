@@ -115,6 +115,12 @@ def reference(sb: Silverbox, *, quadratic_damping: bool = False) -> dict[str, fl
             "output_mean": mu,
             # what centring x = y - mean(y) does to the linear stiffness
             "a2_centred": ref["k1"] + 2 * ref["k2"] * mu + 3 * ref["k3"] * mu**2,
+            # the mean force of the paper's model plus excitation_mean on the raw output
+            # (x'' + a1 x' + a2 x + n2 x^3 - m = f, E f = 0): the offset b, the input's
+            # mean and the mean of the quadratic stiffness the model lacks
+            "m": ref["g"] * float(np.mean(np.concatenate(sb.inputs)))
+            + ref["b"]
+            - ref["k2"] * float(np.mean(sb.record.x**2)),
         }
     )
     return ref
@@ -202,20 +208,43 @@ def table(ref: dict, params: dict, ref_d: dict | None = None) -> list[dict]:
     return rows
 
 
-def run_diagnose(csv: Path, out: Path, *, seed: int) -> dict:
-    """``hosid diagnose`` on the owners' CSV; its decision or its error, and its time."""
+def run_diagnose(csv: Path, out: Path, *, seed: int, ref: dict | None = None) -> dict:
+    """``hosid diagnose`` on the owners' CSV: its decision (or its error), the gap after
+    each step, every named parameter's posterior against the reference where it has
+    one, what each named model changes, and the time.
+    """
     from hosid.check.diagnose import diagnose
+    from hosid.check.report import changes_text
 
     t0 = time.perf_counter()
     try:
         d = diagnose(read_record(csv), "paper", rng=np.random.default_rng(seed))
     except Exception as exc:  # the analysis reports what the command says
         return {"error": f"{type(exc).__name__}: {exc}", "seconds": time.perf_counter() - t0}
+    rep = d.report()
+    named = []
+    for st in rep["steps"]:
+        post = st["posterior"]
+        truth = (ref or {}).get(post["param"])
+        named.append(
+            {
+                "effect": st["effect"],
+                "param": post["param"],
+                "mean": post["mean"],
+                "sd": post["sd"],
+                "q05": post["q05"],
+                "q95": post["q95"],
+                "reference": truth,
+                "holds": None if truth is None else post["q05"] <= truth <= post["q95"],
+                "changes": changes_text(st["changes"]),
+            }
+        )
     return {
-        "named_effect": d.named_effect,
+        "named_effects": d.named_effects,
         "decision": d.decision,
-        "gap_before": d.gap_before,
-        "gap_after": d.gap_after,
+        "gaps": rep["gaps"],
+        "named": named,
+        "final_model": rep["final_model"],
         "seconds": time.perf_counter() - t0,
     }
 
@@ -285,8 +314,38 @@ def write_table(results: dict, ref: dict, ref_d: dict, path: Path) -> None:
             )
         lines += ["", *(f"- {n}" for n in res["notes"] or []), ""]
         if "diagnose" in res:
-            lines += [f"`hosid diagnose`: {json.dumps(res['diagnose'])}", ""]
+            lines += _diagnose_lines(res["diagnose"])
     path.write_text("\n".join(lines) + "\n")
+
+
+def _diagnose_lines(diag: dict) -> list[str]:
+    """The diagnose paragraph of ``table.md``."""
+    if "error" in diag:
+        return [f"`hosid diagnose` failed ({diag['seconds']:.0f} s): {diag['error']}", ""]
+    gaps = " -> ".join(f"{g:.3g}" for g in diag["gaps"])
+    lines = [
+        f"`hosid diagnose` ({diag['seconds']:.0f} s): named "
+        f"{', then '.join(diag['named_effects']) or 'nothing'}; gap {gaps}; final model "
+        f"{' + '.join(diag['final_model'])}.",
+        "",
+        f"> {diag['decision']}",
+        "",
+    ]
+    if diag["named"]:
+        lines += [
+            "| named | parameter | reference | mean +- sd | q05 | q95 | holds |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for n in diag["named"]:
+            ref = "-" if n["reference"] is None else f"{n['reference']:.4g}"
+            holds = "-" if n["holds"] is None else ("yes" if n["holds"] else "no")
+            lines.append(
+                f"| {n['effect']} | {n['param']} | {ref} | {n['mean']:.4g} +- {n['sd']:.3g} | "
+                f"{n['q05']:.4g} | {n['q95']:.4g} | {holds} |"
+            )
+        lines += [""] + [f"- {n['effect']} changes: {n['changes']}" for n in diag["named"]]
+        lines += [""]
+    return lines
 
 
 def main(argv=None) -> dict:
@@ -319,7 +378,7 @@ def main(argv=None) -> dict:
                 **info,
             }
             if label == "all" and not args.no_diagnose:
-                results[label]["diagnose"] = run_diagnose(csv, Path(tmp), seed=args.seed)
+                results[label]["diagnose"] = run_diagnose(csv, Path(tmp), seed=args.seed, ref=ref)
     write_table(results, ref, ref_d, args.out / "table.md")
     slim = {k: {kk: vv for kk, vv in v.items() if kk != "draws"} for k, v in results.items()}
     out = {"reference": ref, "reference_quadratic_damping": ref_d, "results": slim}

@@ -181,6 +181,26 @@ def test_layout_is_fixed_by_the_spec(spec, replicate_measures):
     assert tuple(measures(_paper(3), spec=spec)) == MEASURES
 
 
+def test_no_derivative_or_block_spans_a_segment_gap(spec):
+    """Two independent records, the second shifted by 3 (about 4 sd): as segments, the
+    velocity's measures and the spectral tail do not see the shift (the jump at the gap
+    enters no derivative and no block); joined into one segment, the jump's spike shows
+    in the velocity's kurtosis.
+    """
+    a, b = _sim(PAPER_PARAMS, 1, 600.0), _sim(PAPER_PARAMS, 2, 600.0)
+    starts = [0, a.n]
+
+    def rec(shift, segments=starts):
+        return Record(np.concatenate([a.x, b.x + shift]), DT, segments=segments)
+
+    plain, shifted = (measures(rec(s), spec=spec) for s in (0.0, 3.0))
+    for k in ("pdf_v", "psd_tail"):
+        np.testing.assert_allclose(shifted[k], plain[k], rtol=1e-9, atol=1e-12)
+    assert shifted["kurtosis"][1] == pytest.approx(plain["kurtosis"][1], abs=1e-9)
+    joined = measures(rec(3.0, None), spec=spec)
+    assert joined["kurtosis"][1] > plain["kurtosis"][1] + 1.0  # measured -0.53 vs 2.31
+
+
 # ----------------------------------------------------------------- the gap
 def test_gap_equations_on_exact_replicates():
     # replicates with mean 0 and sd 1 exactly (ddof=1): z = obs / sqrt(1 + 1/R)
@@ -549,7 +569,13 @@ def test_command_line(tmp_path, capsys):
     code = _cli(tmp_path, {**PAPER_PARAMS, "m": 12.0}, ["--posterior", "screen"])
     out = capsys.readouterr().out
     assert code == 0 and "named: excitation_mean" in out and " -> " in out
+    assert "+ excitation_mean changes: " in out
     assert (tmp_path / "d" / "report.html").is_file()
+    rep = json.loads((tmp_path / "d" / "report.json").read_text())
+    checks = {c["name"]: c for c in rep["checks"]}
+    assert {"offset", "oscillator", "predictive"} <= set(checks)
+    assert checks["predictive"]["status"] == "pass" and rep["verdict"] in ("pass", "warn")
+    assert set(rep["steps"][0]["changes"]) >= {"a1", "n1", "a2", "n2", "S0"}
     assert not (tmp_path / "d" / "posterior.nc").exists()  # screened: no emcee fit to save
     assert main(["diagnose", "x.csv", "--alpha", "2", "--out", str(tmp_path / "e")]) == 2
 
@@ -563,6 +589,8 @@ def test_command_line_with_emcee(tmp_path, capsys):
     assert code == 0 and "named: excitation_mean, then coulomb_friction" in out
     tree = load(tmp_path / "d" / "posterior.nc")
     assert {"m", "mu"} <= set(tree["posterior"].data_vars)
+    names = [c["name"] for c in json.loads(tree.attrs["checks_json"])]
+    assert {"oscillator", "convergence", "predictive"} <= set(names)
     rep = json.loads((tmp_path / "d" / "report.json").read_text())
     # the paper model's own simulations may escape on this record (an infinite base gap,
     # null in JSON); the named models' gaps fall

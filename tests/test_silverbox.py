@@ -149,3 +149,28 @@ def test_the_analysis_script_on_half_the_periods(analysis, tmp_path):
     rows = {r["parameter"]: r for r in out["results"]["second half"]["table"]}
     assert rows["a1eq"]["holds"] and rows["a2"]["holds"]  # measured: n2 held too
     assert (tmp_path / "table.md").is_file() and (tmp_path / "summary.json").is_file()
+
+
+def test_the_discrepancy_measures_fit_the_circuit(sb):
+    """The measures' layout follows the record: segments, a resonance at 0.23 of the
+    Nyquist frequency, and no spectral-tail measure above the multisine's 200 Hz edge.
+    """
+    from hosid.check.measures import MeasureSpec, measures
+
+    spec = MeasureSpec.from_record(sb.record)
+    assert spec.omega_n == pytest.approx(433.0, rel=0.02)  # sigma_v / sigma_x
+    assert spec.tail_edges == ()  # 0.8 x the edge (1184 rad/s) < 4 omega_n
+    m = measures(sb.record, spec=spec)
+    assert "psd_tail" not in m and all(np.all(np.isfinite(v)) for v in m.values())
+
+
+@pytest.mark.slow
+def test_diagnose_names_the_mean_force_the_reference_holds(sb, ref, analysis, tmp_path):
+    """Measured: excitation_mean named, m = 116 +- 31 against the reference's 139.9; the
+    gap 2.44 -> 0.91.
+    """
+    csv = analysis.owners_csv(sb, slice(None), tmp_path / "silverbox.csv")
+    out = analysis.run_diagnose(csv, tmp_path, seed=0, ref=ref)
+    assert "error" not in out, out
+    assert out["named_effects"][:1] == ["excitation_mean"]
+    assert out["named"][0]["holds"] and out["gaps"][1] < out["gaps"][0]

@@ -324,13 +324,14 @@ def cmd_fit(args) -> int:
 def cmd_diagnose(args) -> int:
     """``hosid diagnose``: name the effect that closes the gap; write its report."""
     from hosid.check.diagnose import diagnose
+    from hosid.check.report import changes_text
     from hosid.output.diagnosis import write_diagnosis
     from hosid.output.files import output_dir
     from hosid.output.results import save
 
     record = _read(args.record)
     _check_out(args.out)
-    _checked(args, record)
+    checks = _checked(args, record)
     candidates = None
     if args.candidates is not None:
         candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
@@ -347,9 +348,12 @@ def cmd_diagnose(args) -> int:
             posterior=args.posterior,
             progress=not args.no_progress,
         )
+        diag.record_checks = list(checks)
         names = []
         if diag.final.tree is not None:
-            save(diag.final_tree, stage / "posterior.nc")
+            tree = diag.final_tree
+            tree.attrs["checks_json"] = json.dumps([c.as_dict() for c in diag.checks()])
+            save(tree, stage / "posterior.nc")
             names.append("posterior.nc")
         names += [p.name for p in write_diagnosis(diag, stage)]
     out = Path(args.out)
@@ -357,6 +361,8 @@ def cmd_diagnose(args) -> int:
     gaps = " -> ".join(_fmt(g) for g in rep["gaps"])
     print(f"base {' + '.join(rep['base'])}: gap {gaps}")
     print(f"named: {', then '.join(rep['named_effects']) or 'none'} - {rep['decision']}")
+    for st in rep["steps"]:
+        print(f"+ {st['effect']} changes: {changes_text(st['changes'])}")
     print("wrote " + ", ".join(str(out / n) for n in names))
     return 0
 

@@ -123,7 +123,6 @@ def _estimate(record: Record, options: Mapping, rng, truths, keep: bool):
 
 def _diagnose(record: Record, options: Mapping, rng, truths, keep: bool):
     from ..check.diagnose import diagnose
-    from ..output.results import attr
 
     t0 = time.perf_counter()
     settings = {k: options[k] for k in OPTIONS["diagnose"] if k != "model"}
@@ -139,7 +138,7 @@ def _diagnose(record: Record, options: Mapping, rng, truths, keep: bool):
         fit_seconds=time.perf_counter() - t0,
     )
     row["final_model"] = "+".join(rep["final_model"])
-    return params, row, tree, attr(tree, "checks") or [], list(rep["final_model"])
+    return params, row, tree, rep["checks"], list(rep["final_model"])
 
 
 _RUN = {"fit": _fit, "estimate": _estimate, "diagnose": _diagnose}

@@ -42,6 +42,7 @@ from ..errors import HosidInputError
 from ..model.model import Model, get_term
 from ..model.terms import CANDIDATES
 from ..record import Record
+from ..verdicts import Check
 from .evidence import COORDINATES
 from .measures import MeasureSpec
 from .model_check import ModelCheck, check_model
@@ -103,6 +104,7 @@ class Diagnosis:
     failed: dict[str, str] = field(default_factory=dict)
     steps: list[Step] = field(default_factory=list)
     rounds: list[Round] = field(default_factory=list)
+    record_checks: list[Check] = field(default_factory=list)
 
     @property
     def named_effects(self) -> list[str]:
@@ -136,6 +138,16 @@ class Diagnosis:
     def gap_after(self) -> float:
         """The final model's total gap."""
         return self.final.total
+
+    def checks(self) -> list[Check]:
+        """The verdicts that travel with the result: the record checks the command ran,
+        the final fit's own (calibration, convergence) and the predictive check.
+        """
+        from ..output.results import attr
+        from .report import predictive_check
+
+        own = [] if self.final.tree is None else attr(self.final.tree, "checks") or []
+        return [*self.record_checks, *map(Check.from_dict, own), predictive_check(self)]
 
     def report(self) -> dict[str, Any]:
         """The ``report.json`` content (infinite gaps stay ``inf``; see ``jsonable``)."""
@@ -262,15 +274,14 @@ def diagnose(
             keep_replicates=keep,
         )  # fmt: skip
 
-    from tqdm.auto import tqdm
+    from ..progress import bar as progress_bar
 
     total = 2 + (len(cands) if candidate_gaps else 0)
-    bar = tqdm(total=total, desc="diagnose", disable=not progress, leave=False)
+    bar = progress_bar("hosid diagnose", total=total, enabled=progress, unit="fit")
 
-    def stage(text, grow=0):
+    def stage(text, grow=0):  # the bar's label names the stage; the total grows by round
         bar.total += grow
-        bar.set_postfix_str(text)
-        bar.refresh()
+        bar.set_description(f"hosid diagnose: {text}", refresh=True)
 
     steps: list[Step] = []
     rounds: list[Round] = []
@@ -280,6 +291,11 @@ def diagnose(
         stage(f"fit base ({posterior})")
         current = base_chk = check(base_model, path_ss, posterior)
         bar.update()
+        for c in cands:  # the fit may have added an excitation term that covers one
+            if c not in current.model.candidates:
+                failed[c] = f"the fitted model ({' + '.join(current.model.names)}) covers it"
+        cands = [c for c in cands if c not in failed]
+        limit = min(limit, len(cands))
         remaining = list(cands)
         while remaining and len(steps) < limit:
             stage(f"round {len(rounds) + 1}: weigh {len(remaining)} candidates", grow=1)

@@ -71,7 +71,8 @@ import numpy as np
 
 from ..errors import HosidInputError
 from ..record import Record
-from ..spectra.blocks import BlockLayout, block_fft, choose_layout
+from ..spectra.blocks import block_fft, blocks_in, choose_layout
+from ..spectra.response import response_spectrum
 from ..spectra.windows import get_window
 from ..state import derivatives
 from .gaps import compare_layout, gaps
@@ -187,37 +188,45 @@ class MeasureSpec:
             the bands do not fit below the Nyquist frequency or hold no frequency bin.
         """
         dt = record.dt
+        x = record.x - record.x.mean()
+        if not np.std(x) > 0:
+            raise HosidInputError("record is constant")
+        v = np.concatenate([derivatives(p, dt)[0] for p in record.split(x)])
         if omega_n is None:
-            x = record.x - record.x.mean()
-            if not np.std(x) > 0:
-                raise HosidInputError("record is constant")
-            v, _ = derivatives(x, dt)
             omega_n = float(np.std(v) / np.std(x))
         wn, wN = float(omega_n), math.pi / dt
         if not (math.isfinite(wn) and wn > 0):
             raise HosidInputError(f"natural frequency {wn!r} rad/s is not positive")
-        M = choose_layout(record.n, dt, wn, block_seconds=block_seconds, min_blocks=min_blocks).M
+        M = choose_layout(
+            record.n, dt, wn, block_seconds=block_seconds, min_blocks=min_blocks,
+            bounds=record.bounds,
+        ).M  # fmt: skip
         dw = 2.0 * math.pi / (M * dt)
-        if not 4.0 * dw <= wn <= 0.2 * wN:
+        if not 4.0 * dw <= wn <= 0.4 * wN:
             raise HosidInputError(
-                f"natural frequency {wn:.3g} rad/s is outside [{4 * dw:.3g}, {0.2 * wN:.3g}] "
+                f"natural frequency {wn:.3g} rad/s is outside [{4 * dw:.3g}, {0.4 * wN:.3g}] "
                 f"rad/s: use longer blocks or a finer sampling"
             )
+        # the tail's shape up to the excitation's edge when it stops below Nyquist
+        # (nothing of the model's tail lies beyond it); none when no octave is left
+        edge = response_spectrum(x, dt, sigma_v=float(np.std(v)), bounds=record.bounds).edge
+        top = 0.8 * (min(wN, edge[0]) if edge else wN)
+        tail = np.geomspace(2.5 * wn, top, 5) if top >= 4.0 * wn else ()
         psd_edges = (0.5 * dw, *np.linspace(0.25 * wn, 2.0 * wn, 8))
         spec = cls(
             dt=dt,
             omega_n=wn,
             block=M,
             psd_edges=tuple(float(e) for e in psd_edges),
-            tail_edges=tuple(float(e) for e in np.geomspace(2.5 * wn, 0.8 * wN, 5)),
+            tail_edges=tuple(float(e) for e in tail),
             force_edges=tuple(
                 float(e) for e in np.geomspace(0.25 * wn, min(4.0 * wn, 0.8 * wN), 7)
             ),
             force_cutoff=float(min(3.0 * wn, 0.8 * wN)),
-            bispec_edges=(0.0, 0.5 * wn, 1.5 * wn, 3.0 * wn),
-            trim=max(1, round(1.0 / dt)),
+            bispec_edges=(0.0, 0.5 * wn, 1.5 * wn, min(3.0 * wn, wN)),
+            trim=max(1, min(round(1.0 / dt), min(b - a for a, b in record.bounds) // 8)),
         )
-        for edges in (spec.psd_edges, spec.tail_edges, spec.force_edges):
+        for edges in (spec.psd_edges, spec.tail_edges or (0.0, wN), spec.force_edges):
             counts = np.histogram(spec.omega, bins=np.asarray(edges))[0]
             if np.any(counts == 0):
                 raise HosidInputError(
@@ -228,10 +237,11 @@ class MeasureSpec:
 
 
 # --------------------------------------------------------------------- helpers
-def _psd(y: np.ndarray, spec: MeasureSpec) -> np.ndarray:
-    r"""Two-sided PSD estimate :math:`\overline{|Y|^2}/(2\pi T k_2)` per bin (Hann blocks)."""
-    layout = BlockLayout(M=spec.block, B=y.size // spec.block, dt=spec.dt)
-    Y = block_fft(y, layout, _HANN)
+def _psd(y: np.ndarray, spec: MeasureSpec, bounds) -> np.ndarray:
+    r"""Two-sided PSD estimate :math:`\overline{|Y|^2}/(2\pi T k_2)` per bin (Hann blocks
+    inside the segments ``bounds``).
+    """
+    Y = block_fft(y, blocks_in(bounds, spec.block, spec.dt), _HANN)
     T = spec.block * spec.dt
     return np.mean(Y.real**2 + Y.imag**2, axis=0) / (2.0 * math.pi * T * _HANN.k2)
 
@@ -290,7 +300,7 @@ def measures(
     spec = MeasureSpec.from_record(record) if spec is None else spec
     if not math.isclose(record.dt, spec.dt, rel_tol=1e-9):
         raise HosidInputError(f"record dt {record.dt:g} differs from the spec's {spec.dt:g}")
-    if record.n // spec.block < MIN_BLOCKS:
+    if blocks_in(record.bounds, spec.block, spec.dt).B < MIN_BLOCKS:
         raise HosidInputError(
             f"record of {record.n} samples is too short for {MIN_BLOCKS} blocks of {spec.block}"
         )
@@ -298,35 +308,45 @@ def measures(
     x = record.x
     mean_x = float(x.mean())
     xc = x - mean_x
-    v, a = derivatives(xc, record.dt)
-    body = slice(spec.trim, x.size - spec.trim)
-    xs, vs = xc[body], v[body]
+    segs = record.split(xc)
+    deriv = [derivatives(p, record.dt) for p in segs]
+    bodies = [slice(spec.trim, p.size - spec.trim) for p in segs]
 
-    P = _psd(xc, spec)
-    out: dict[str, np.ndarray] = {
-        "psd": _band_log(P, spec.psd_edges, spec),
-        "psd_tail": np.diff(_band_log(P, spec.tail_edges, spec)),
-        "pdf_x": np.quantile(xs / xs.std(), X_LEVELS),
-        "pdf_v": np.quantile(np.abs(vs) / vs.std(), V_LEVELS),
-    }
+    def pooled(parts) -> np.ndarray:  # the segments' bodies, one after the other
+        return np.concatenate([p[b] for p, b in zip(parts, bodies, strict=True)])
+
+    xs, vs = pooled(segs), pooled([d[0] for d in deriv])
+    P = _psd(xc, spec, record.bounds)
+    out: dict[str, np.ndarray] = {"psd": _band_log(P, spec.psd_edges, spec)}
+    if spec.tail_edges:
+        out["psd_tail"] = np.diff(_band_log(P, spec.tail_edges, spec))
+    out["pdf_x"] = np.quantile(xs / xs.std(), X_LEVELS)
+    out["pdf_v"] = np.quantile(np.abs(vs) / vs.std(), V_LEVELS)
     if fn is None:
         energy = 0.5 * vs**2 + 0.5 * (vs.var() / xs.var()) * xs**2
     else:
-        energy = 0.5 * vs**2 + potential(x[body], fn)
+        energy = 0.5 * vs**2 + potential(xs + mean_x, fn)
     energy = np.maximum(energy / energy.mean(), np.finfo(float).tiny)
     out["pdf_energy"] = np.log(np.quantile(energy, ENERGY_LEVELS))
     mx, mv = std_moments(xs), std_moments(vs)
     out["skewness"] = np.array([mx[0], mv[0]])
     out["kurtosis"] = np.array([mx[1], mv[1]])
     out["mean"] = np.array([mean_x])
-    out["bispectrum"] = bispectral_moments(xc, body, spec.dt, spec.bispec_edges)
+    out["bispectrum"] = bispectral_moments(
+        list(zip(segs, bodies, strict=True)), spec.dt, spec.bispec_edges
+    )
     if fn is not None:
-        f = a + np.asarray(fn(x, v), dtype=float)
+        f = np.concatenate(
+            [
+                a + np.asarray(fn(p + mean_x, v), dtype=float)
+                for p, (v, a) in zip(segs, deriv, strict=True)
+            ]
+        )
         f = f - f.mean()
-        logs = _band_log(_psd(f, spec), spec.force_edges, spec)
+        logs = _band_log(_psd(f, spec, record.bounds), spec.force_edges, spec)
         out["force_psd"] = logs - logs.mean()
-        (low,) = band_split(f, record.dt, (0.0, spec.force_cutoff))
-        out["force_moments"] = std_moments(low[body])
+        low = [band_split(p, record.dt, (0.0, spec.force_cutoff))[0] for p in record.split(f)]
+        out["force_moments"] = std_moments(pooled(low))
     return out
 
 

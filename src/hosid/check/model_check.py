@@ -152,8 +152,8 @@ def _replicates(record, model, sample, seeds, spec, drift, rng, keep):
                 failed += 1
         if sim is None:
             return None, np.array(used), failed, []
-        if sim.n != record.n:
-            sim = Record(x=sim.x[: record.n], dt=sim.dt)
+        if sim.n != record.n or record.n_segments > 1:  # the record's length and segments
+            sim = Record(x=sim.x[: record.n], dt=sim.dt, segments=record.segments)
         reps.append(measures(sim, spec=spec, drift=drift))
         used.append(theta)
         if keep:
@@ -207,12 +207,14 @@ def check_model(
     tree = None
     if method == "emcee":
         tree = fit(record, model=model, seed=rng, progress=False)
+        model = Model.from_spec(list(attr(tree, "model")))  # with the excitation terms added
         theta_hat = dict(attr(tree, "estimate"))
         hansen = dict(attr(tree, "calibration")["hansen"])
         sample = tree_sample(tree, model)
         info: dict = {"draws": int(sample.shape[0])}
     elif method == "screen":
         est = estimate(record, model)
+        model = est.model
         theta_hat, hansen = est.values, dict(est.test)
         sample, info = screen_sample(est, rng)
     else:

@@ -10,6 +10,9 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
+from ..verdicts import Check, overall
 from .evidence import COORDINATES
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -69,7 +72,31 @@ def decision_text(diag: Diagnosis) -> str:
     return "; ".join(parts)
 
 
-def _step_row(step: Step) -> dict[str, Any]:
+def _changes(before, after) -> dict[str, dict[str, float]]:
+    """What a named step changes: every parameter both models share, its estimate before
+    and after, and the shift in the earlier posterior's sd.
+    """
+    out = {}
+    for i, p in enumerate(before.model.param_names):
+        if p not in after.theta_hat:
+            continue
+        v0, v1 = float(before.theta_hat[p]), float(after.theta_hat[p])
+        sd = float(np.std(before.sample[:, i], ddof=1)) if before.sample.shape[0] > 1 else 0.0
+        out[p] = {"before": v0, "after": v1, "shift_sd": (v1 - v0) / sd if sd > 0 else math.nan}
+    return out
+
+
+def changes_text(changes: dict[str, dict[str, float]], limit: float = 1.0) -> str:
+    """The parameters a step moves by more than ``limit`` earlier sd, in one line."""
+    moved = [
+        f"{p} {c['before']:.4g} -> {c['after']:.4g} ({c['shift_sd']:+.1f} sd)"
+        for p, c in changes.items()
+        if abs(c["shift_sd"]) > limit
+    ]
+    return ", ".join(moved) if moved else f"no parameter moves by more than {limit:g} sd"
+
+
+def _step_row(step: Step, before) -> dict[str, Any]:
     ev = step.round.evidence[step.effect]
     g0, g1 = step.gap_before, step.gap_after
     return {
@@ -85,6 +112,7 @@ def _step_row(step: Step) -> dict[str, Any]:
         "z_after": step.check.z,
         "hansen": step.check.hansen,
         "vetoed": dict(step.vetoed),
+        "changes": _changes(before, step.check),
     }
 
 
@@ -106,9 +134,37 @@ def _candidate_rows(diag: Diagnosis) -> list[dict[str, Any]]:
     return rows
 
 
+def predictive_check(diag: Diagnosis) -> Check:
+    """Whether the final model describes the record: its posterior-predictive gap's robust
+    z against the null (``fail`` when its simulations diverge, ``warn`` at or above the
+    threshold).
+    """
+    final, limit = diag.final, diag.settings["threshold"]
+    model = " + ".join(final.model.names)
+    if final.diverged:
+        return Check(
+            "predictive", "fail", None,
+            f"the posterior-predictive simulations of {model} diverge",
+        )  # fmt: skip
+    if final.z >= limit:
+        return Check(
+            "predictive", "warn", final.z,
+            f"the gap {final.total:.2f} of {model} is {final.z:.1f} robust sd above its null "
+            f"(>= {limit:g}): the record holds something the candidates do not describe",
+        )  # fmt: skip
+    return Check(
+        "predictive", "pass", final.z,
+        f"{model} describes the record: gap {final.total:.2f}, {final.z:.1f} robust sd "
+        f"from its null (< {limit:g})",
+    )  # fmt: skip
+
+
 def diagnosis_report(diag: Diagnosis) -> dict[str, Any]:
     """The ``report.json`` content (infinite gaps stay ``inf``; see ``jsonable``)."""
+    checks = diag.checks()
     return {
+        "checks": [c.as_dict() for c in checks],
+        "verdict": overall(checks),
         "named_effect": diag.named_effect,
         "named_effects": diag.named_effects,
         "decision": diag.decision,
@@ -124,7 +180,10 @@ def diagnosis_report(diag: Diagnosis) -> dict[str, Any]:
         "hansen_before": diag.base.hansen,
         "hansen_after": diag.final.hansen,
         "gaps": [diag.gap_before, *(st.gap_after for st in diag.steps)],
-        "steps": [_step_row(st) for st in diag.steps],
+        "steps": [
+            _step_row(st, diag.steps[i - 1].check if i else diag.base)
+            for i, st in enumerate(diag.steps)
+        ],
         "rounds": [r.as_dict() for r in diag.rounds],
         "candidates": _candidate_rows(diag),
         "base_fit": diag.base.summary(),

@@ -96,7 +96,7 @@ def band_split(y: np.ndarray, dt: float, edges: Sequence[float]) -> list[np.ndar
 
 
 def bispectral_moments(
-    xc: np.ndarray, body: slice, dt: float, edges: Sequence[float]
+    pieces: Sequence[tuple[np.ndarray, slice]], dt: float, edges: Sequence[float]
 ) -> np.ndarray:
     r"""Normalized third-order cross moments of frequency bands: integrals of the
     bispectrum over regions.
@@ -107,9 +107,11 @@ def bispectral_moments(
     ``LRR`` (difference interaction: the slow part of :math:`x` following the
     resonant amplitude, as a quadratic stiffness drives it), ``LLR``, ``HRR`` (sum
     interaction: the second harmonic) and ``HHR``.  All are 0 for a system symmetric
-    under :math:`x \to -x`.
+    under :math:`x \to -x`.  ``pieces`` are the record's segments ``(xc, body)``:
+    each is split on its own and the moments pool the bodies.
     """
-    L, R, H = (b[body] for b in band_split(xc, dt, edges))
+    split = [[b[body] for b in band_split(y, dt, edges)] for y, body in pieces]
+    L, R, H = (np.concatenate([s[i] for s in split]) for i in range(3))
     sL, sR, sH = L.std(), R.std(), H.std()
     return np.array(
         [

@@ -146,8 +146,11 @@ class Model:
 
     @property
     def candidates(self) -> tuple[str, ...]:
-        """Candidate effects not yet in the model."""
-        return tuple(c for c in CANDIDATES if c not in self.names)
+        """Candidate effects not yet in the model (a band-limited excitation's roll-off
+        is already a coloured excitation's low-pass).
+        """
+        taken = set(self.names) | ({"coloured_excitation"} if self.has("wb") else set())
+        return tuple(c for c in CANDIDATES if c not in taken)
 
     def latex(self) -> str:
         r"""The equation of motion in LaTeX."""

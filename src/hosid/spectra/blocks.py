@@ -49,6 +49,7 @@ __all__ = [
     "BlockLayout",
     "block_fft",
     "block_means",
+    "blocks_in",
     "choose_layout",
     "distinct_bounds",
     "repeat_lag",
@@ -120,7 +121,7 @@ class BlockLayout:
         return {"block_samples": self.M, "blocks": self.B, "block_seconds": self.T}
 
 
-def _fit(bounds, M: int, dt: float) -> BlockLayout:
+def blocks_in(bounds, M: int, dt: float) -> BlockLayout:
     """Blocks of ``M`` samples from the start of every segment ``(start, stop)``."""
     starts = [a + k * M for a, b in bounds for k in range((b - a) // M)]
     if len(bounds) == 1:
@@ -169,7 +170,7 @@ def choose_layout(
                 f"blocks of {block_seconds:g} s hold only {M} samples at dt={dt:g}; "
                 "use longer blocks"
             )
-        layout = _fit(bounds, M, dt)
+        layout = blocks_in(bounds, M, dt)
         if layout.B < min_blocks:
             raise HosidInputError(
                 f"record of {n} samples ({n * dt:g} s{where}) is too short for {min_blocks} "
@@ -180,9 +181,9 @@ def choose_layout(
     if bandwidth is not None and bandwidth > 0:
         target = max(target, BINS_PER_BANDWIDTH * 2.0 * math.pi / bandwidth)
     M = 2 ** round(math.log2(max(target / dt, 16.0)))
-    while _fit(bounds, M, dt).B < min_blocks and M > 16:
+    while blocks_in(bounds, M, dt).B < min_blocks and M > 16:
         M //= 2
-    layout = _fit(bounds, M, dt)
+    layout = blocks_in(bounds, M, dt)
     if M * dt < MIN_PERIODS * period or layout.B < min_blocks:
         m_min = 2 ** math.ceil(math.log2(MIN_PERIODS * period / dt))
         raise HosidInputError(
