@@ -22,7 +22,7 @@ among others (``Schroeder80mV.csv``: ``Ovld2,Ovld1,V1,V2``; ``SNLS80mV.csv``: ``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -57,7 +57,7 @@ class Silverbox:
     """
 
     record: Record
-    inputs: tuple[np.ndarray, ...]
+    inputs: tuple[np.ndarray, ...] = field(repr=False)
     starts: tuple[int, ...]
     period: int
 

@@ -147,7 +147,10 @@ class Diagnosis:
         from .report import predictive_check
 
         own = [] if self.final.tree is None else attr(self.final.tree, "checks") or []
-        return [*self.record_checks, *map(Check.from_dict, own), predictive_check(self)]
+        own = [Check.from_dict(c) for c in own]  # a fit checks the record itself
+        seen = {c.name for c in own}
+        extra = [c for c in self.record_checks if c.name not in seen]
+        return [*extra, *own, predictive_check(self)]
 
     def report(self) -> dict[str, Any]:
         """The ``report.json`` content (infinite gaps stay ``inf``; see ``jsonable``)."""
