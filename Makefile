@@ -41,13 +41,18 @@ bench: $(STAMP)
 		echo "make bench: no benchmarks/*.py yet" >&2; exit 1; fi
 	$(PY) -m pytest -q --benchmark-only benchmarks
 
-# The statistical studies (tens of minutes): the information limit per regime, the
-# efficiency and calibration of the default fit and of --cost J4A, the diagnose confusion.
+# The statistical studies (hours on 2 cores; each resumes where it stopped): the
+# information limit per regime, the efficiency and calibration of the default fit and of
+# --cost J4A, the record checks' false alarms and detections, the diagnose confusion and
+# power, the Silverbox (skipped, saying why, without its file).
 analyses: $(STAMP)
 	$(PY) analyses/crb.py
-	$(PY) analyses/efficiency_study.py --cost default
-	$(PY) analyses/efficiency_study.py --cost J4A
+	$(PY) analyses/efficiency_study.py --cost default --records 20 --workers 2
+	$(PY) analyses/efficiency_study.py --cost J4A --records 20 --workers 2
+	$(PY) analyses/record_checks.py
 	$(PY) analyses/diagnose_confusion.py
+	$(PY) analyses/diagnose_power.py
+	$(PY) analyses/silverbox.py
 
 clean:
 	rm -rf $(VENV) demo-out analyses/out .pytest_cache .benchmarks build src/*.egg-info

@@ -34,6 +34,7 @@ import argparse
 import json
 import math
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -357,7 +358,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--no-diagnose", action="store_true")
     ap.add_argument("--seed", type=int, default=16)
     args = ap.parse_args(argv)
-    sb = load_silverbox(args.file or data_file())
+    path = args.file or data_file()
+    if not path.is_file():  # the data are not part of the project
+        print(f"silverbox: {path} is absent (set HOSID_SILVERBOX); nothing done", file=sys.stderr)
+        return {}
+    sb = load_silverbox(path)
     ref = reference(sb)
     ref_d = reference(sb, quadratic_damping=True)
     args.out.mkdir(parents=True, exist_ok=True)

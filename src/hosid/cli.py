@@ -156,6 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
         ("mu", _nonnegative, "Coulomb friction mu sign(x')"),
         ("m", _number, "mean force m"),
         ("wc", _positive, "corner (rad/s) of a low-pass on the force"),
+        ("wb", _positive, "edge (rad/s) above which the force has no power"),
+        ("rolloff", _nonnegative, "roll-off beta of the band-limited force within its band"),
         ("noise_sd", _positive, "sd of white measurement noise on x"),
     ):
         sim.add_argument(

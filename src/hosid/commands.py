@@ -123,7 +123,7 @@ def cmd_simulate(args) -> int:
     params.update(
         {
             k: getattr(args, k)
-            for k in ("b2", "mu", "m", "wc", "noise_sd")
+            for k in ("b2", "mu", "m", "wc", "wb", "rolloff", "noise_sd")
             if getattr(args, k) is not None
         }
     )
