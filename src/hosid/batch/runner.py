@@ -46,12 +46,14 @@ __all__ = [
     "run_batch",
 ]
 
-#: Environment of the local workers: one thread for every numerical library.
+#: Environment of the local workers: one thread for every BLAS.  Numba is held to one
+#: thread in each task (``numba.set_num_threads``), not here: the nannies run in the
+#: calling process and set this environment there while they spawn, and numba refuses to
+#: compile once its pool was launched under another NUMBA_NUM_THREADS.
 THREAD_ENV = {
     "OMP_NUM_THREADS": "1",
     "OPENBLAS_NUM_THREADS": "1",
     "MKL_NUM_THREADS": "1",
-    "NUMBA_NUM_THREADS": "1",
 }
 #: Seconds between rewrites of the table while the batch runs.
 TABLE_EVERY = 60.0
