@@ -106,7 +106,8 @@ def test_seeds_are_keyed_by_regime_and_record(study, tmp_path):
     es, regimes = study["efficiency_study"], study["regimes"]
     short, paper = regimes.BY_NAME["short"], regimes.BY_NAME["paper_S100"]
     design = es.write_design([paper, short], tmp_path / "design.csv", records=3)
-    tasks = design_tasks(read_design(design), analysis="fit", options={}, seed=1)
+    rows = read_design(design)
+    tasks = design_tasks(rows, analysis="fit", options={}, seed=1, folder=design.parent)
     assert [t.label for t in tasks] == [f"{r.name}-{k}" for r in (paper, short) for k in range(3)]
     for t in tasks:
         r = regimes.BY_NAME[t.point.name]
