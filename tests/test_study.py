@@ -106,8 +106,7 @@ def test_seeds_are_keyed_by_regime_and_record(study, tmp_path):
     es, regimes = study["efficiency_study"], study["regimes"]
     short, paper = regimes.BY_NAME["short"], regimes.BY_NAME["paper_S100"]
     design = es.write_design([paper, short], tmp_path / "design.csv", records=3)
-    rows = read_design(design)
-    tasks = design_tasks(rows, analysis="fit", options={}, seed=1, folder=design.parent)
+    tasks = design_tasks(read_design(design), analysis="fit", options={}, seed=1)
     assert [t.label for t in tasks] == [f"{r.name}-{k}" for r in (paper, short) for k in range(3)]
     for t in tasks:
         r = regimes.BY_NAME[t.point.name]

@@ -64,10 +64,13 @@ class DesignRow:
     duration: float = 2000.0
     dt: float = 0.02
     simulator: str = "hosid"
+    folder: str = field(default=".", compare=False)  # the design file's (read_design)
 
-    def points(self, folder: str | Path = ".") -> list[DesignPoint]:
-        """The row's records (``folder`` resolves a relative simulator file)."""
-        ref = _resolve(self.simulator, Path(folder))
+    def points(self, folder: str | Path | None = None) -> list[DesignPoint]:
+        """The row's records (``folder``, default the design file's, resolves a relative
+        simulator file).
+        """
+        ref = _resolve(self.simulator, Path(self.folder if folder is None else folder))
         return [
             DesignPoint(
                 self.name,
@@ -120,6 +123,7 @@ def _row(i: int, raw: Mapping[str, Any], where: str, folder: Path) -> DesignRow:
         duration=_number(cells.get("duration", 2000.0), f"{at}, duration"),
         dt=_number(cells.get("dt", 0.02), f"{at}, dt"),
         simulator=str(cells.get("simulator", "hosid")).strip(),
+        folder=str(folder),
     )
     try:
         check_simulation(row.params, row.duration, row.dt, 1)
@@ -171,12 +175,14 @@ def design_tasks(
     analysis: str,
     options: Mapping[str, Any],
     seed: int = 0,
-    folder: str | Path = ".",
+    folder: str | Path | None = None,
 ) -> list[Task]:
     """One task per record of the design: row by row, seed number by seed number
     (``options`` as in :func:`hosid.batch.record_tasks`).
 
-    ``folder`` resolves relative simulator files (the design file's folder).
+    ``folder`` resolves relative simulator files; default each row's own (the folder of
+    the design file :func:`read_design` read it from; the working directory for rows
+    built by hand).
     """
     options = options_for(analysis, options)
     return [
