@@ -198,6 +198,8 @@ def test_write_report_files_html_and_summary(paper_fit, tmp_path):
     assert summary["state"]["block_seconds"] > 0 and summary["state"]["blocks"] >= 1
     assert set(summary["timings"]) >= {"estimate", "sampling"}
     assert summary["units"]["n2"] == "1/(m² s²)"
+    notes = summary["record_notes"]  # what the record's spectrum showed, in the report too
+    assert notes and notes[0].startswith("response spectrum:") and 'id="record-notes"' in html
     expected = summarize(paper_fit, warn=False)
     assert summary["converged"] == expected["converged"]
     assert ("Not converged" in html) == (not expected["converged"])

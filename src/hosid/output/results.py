@@ -231,6 +231,7 @@ def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
         "diagnostic_failures": failures,
         "checks": checks,
         "verdict": overall(Check.from_dict(c) for c in checks),
+        "record_notes": attr(tree, "record_notes") or [],
         "forced": bool(attr(tree, "forced", 0)),
         "fit_seconds": attr(tree, "fit_seconds"),
         "calibration": attr(tree, "calibration"),
