@@ -57,37 +57,6 @@ def _read(path: str):
     return read_record(Path(path))
 
 
-def _truths(args, record_path: Path) -> dict | None:
-    path = Path(args.truths) if getattr(args, "truths", None) else None
-    if path is None:
-        for cand in (
-            record_path.with_suffix(".truths.json"),
-            record_path.with_name(record_path.name + ".truths.json"),
-        ):
-            if cand.is_file():
-                path = cand
-                break
-    if path is None:
-        return None
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise HosidInputError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise HosidInputError(f"{path}: not valid JSON ({exc})") from None
-    ok = (
-        isinstance(data, dict)
-        and data
-        and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            for v in data.values()
-        )
-    )
-    if not ok:
-        raise HosidInputError(f"{path}: truths must be a JSON object of finite numbers")
-    return {k: float(v) for k, v in data.items()}
-
-
 def _print_fit(summary: dict) -> None:
     params = summary["parameters"]
     print(
@@ -295,7 +264,9 @@ def cmd_fit(args) -> int:
     if backend is not None and Path(backend).suffix.lower() not in (".h5", ".hdf5"):
         raise HosidInputError(f"{backend}: the backend must be an HDF5 file (.h5 or .hdf5)")
     record = _read(args.record)
-    truths = _truths(args, Path(args.record))
+    from hosid.record import read_truths
+
+    truths = read_truths(Path(args.record), args.truths)
     _check_out(args.out)
     checks = _checked(args, record)
     return _fit_into(

@@ -204,11 +204,10 @@ class Task:
         """
         if self.ready:
             return self
-        from ..commands import _truths  # the sidecar lookup of ``hosid fit``
-        from ..record import read_record
+        from ..record import read_record, read_truths  # the sidecar, as ``hosid fit``
 
         record = read_record(self.path)
-        truths = _truths(None, Path(self.path))
+        truths = read_truths(self.path)
         return dataclasses.replace(self, path=None, record=record, truths=truths)
 
     @cached_property
