@@ -47,6 +47,7 @@ from independent_sim import _equivalent_damping
 from independent_sim import simulate as independent_simulate
 from regimes import BY_NAME
 
+from hosid.check.diagnose import DEFAULT_REPLICATES
 from hosid.check.evidence import COORDINATES
 
 RESULTS = Path(__file__).resolve().parent / "results" / "diagnose_power"
@@ -78,6 +79,7 @@ FIELDS = (
     "truth",
     "rounds_calibrated",
     "seconds",
+    "replicates",
     "error",
 )
 
@@ -180,6 +182,7 @@ def run_one(row: dict, ss: np.random.SeedSequence) -> dict:
         hidden="+".join(hidden) or "none",
         strength=max(row["effects"].values(), default=0.0),
         truth=json.dumps({k: round(v, 8) for k, v in row["truth"].items()}),
+        replicates=row["replicates"],
         error="",
     )
     try:
@@ -276,7 +279,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", nargs="*", default=None, help="cell names (default: all)")
     ap.add_argument("--records", type=int, default=None, help="at most this many a cell")
-    ap.add_argument("--replicates", type=int, default=20)
+    ap.add_argument("--replicates", type=int, default=DEFAULT_REPLICATES)
     ap.add_argument("--duration", type=float, default=None, help="override (tests only)")
     ap.add_argument("--seed", type=int, default=SEED)
     ap.add_argument("--summary", action="store_true", help="tables and figure only")

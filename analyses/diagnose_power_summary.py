@@ -230,10 +230,11 @@ def figure(curves: dict, path: Path) -> None:
 def summarize(rows: list[dict], bounds: dict, out: Path) -> str:
     """Write ``power.md`` and ``power.png``; return the markdown."""
     table, curves = power_table(rows)
+    reps = sorted({int(r.get("replicates") or 20) for r in rows})  # older rows: 20
     parts = [
         "# diagnose: power against the information limit\n",
         "Records from the independent simulator; `diagnose(..., posterior='screen', "
-        "candidate_gaps=False, replicates=20)`, alpha = 5 % a round. Cells: named the hidden "
+        f"candidate_gaps=False, replicates={'/'.join(map(str, reps))})`, alpha = 5 % a round. Cells: named the hidden "
         "effect / records (in brackets: named exactly the hidden effect and nothing else).\n",
         "## Power\n",
         table,

@@ -20,6 +20,7 @@ from typing import NoReturn
 
 from hosid import __version__, commands
 from hosid.batch.cli import add_batch_parser
+from hosid.check.diagnose import DEFAULT_REPLICATES
 from hosid.errors import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
@@ -234,7 +235,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="LIST",
         help="comma-separated effects to try; default all not in BASE",
     )
-    dia.add_argument("--replicates", type=_integer(4), default=20, help="default 20")
+    dia.add_argument(
+        "--replicates",
+        type=_integer(4),
+        default=DEFAULT_REPLICATES,
+        help=f"default {DEFAULT_REPLICATES}",
+    )
     dia.add_argument(
         "--alpha",
         type=_probability,

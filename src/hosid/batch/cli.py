@@ -18,6 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..check.diagnose import DEFAULT_REPLICATES
 from ..errors import HosidInputError
 from .tasks import ANALYSES
 
@@ -76,7 +77,7 @@ def _flags(base) -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
             "--replicates",
             "replicates",
             ("diagnose",),
-            {"type": n(4), "metavar": "N", "help": "default 20"},
+            {"type": n(4), "metavar": "N", "help": f"default {DEFAULT_REPLICATES}"},
         ),
         (
             "--threshold",

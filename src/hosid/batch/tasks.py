@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from ..check.diagnose import DEFAULT_REPLICATES
 from ..errors import HosidInputError
 from ..record import Record
 
@@ -75,7 +76,7 @@ OPTIONS: dict[str, dict[str, Any]] = {
     "diagnose": {
         "model": "paper",
         "candidates": None,
-        "replicates": 20,
+        "replicates": DEFAULT_REPLICATES,
         "alpha": 0.05,
         "threshold": 3.0,
         "max_effects": None,
