@@ -200,7 +200,8 @@ def timing(rows: list[dict]) -> str:
 def bounds_table(bounds: dict) -> str:
     lines = ["| regime | base | effect | coordinate | CRB sd |", "|---|---|---|---|---|"]
     for (regime, system, effect), sd in sorted(bounds.items()):
-        lines.append(f"| {regime} | {system} | {effect} | {COORD[effect]} | {sd:.4g} |")
+        coord = COORD[effect.split(" given ")[0]]  # also "e given o=k": e's bound given o
+        lines.append(f"| {regime} | {system} | {effect} | {coord} | {sd:.4g} |")
     return "\n".join(lines) + "\n"
 
 
@@ -234,8 +235,9 @@ def summarize(rows: list[dict], bounds: dict, out: Path) -> str:
     parts = [
         "# diagnose: power against the information limit\n",
         "Records from the independent simulator; `diagnose(..., posterior='screen', "
-        f"candidate_gaps=False, replicates={'/'.join(map(str, reps))})`, alpha = 5 % a round. Cells: named the hidden "
-        "effect / records (in brackets: named exactly the hidden effect and nothing else).\n",
+        f"candidate_gaps=False, replicates={'/'.join(map(str, reps))})`, alpha = 5 % a round. "
+        "Cells: named the hidden effect / records (in brackets: named exactly the hidden "
+        "effect and nothing else).\n",
         "## Power\n",
         table,
         "## False alarms on clean records\n",

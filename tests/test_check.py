@@ -508,7 +508,7 @@ def test_no_missing_effect_names_none(clean_1000, capsys):
         mp.setattr(dg, "weigh_round", flaky)
         d = diagnose(
             clean_1000, "paper", rng=np.random.default_rng(1), posterior="screen",
-            candidate_gaps=False,
+            candidate_gaps=False, replicates=20,
         )  # fmt: skip
     assert capsys.readouterr().err == ""  # progress=False: silent
     assert d.named_effects == [] and d.named_effect is None and d.final is d.base

@@ -29,11 +29,17 @@ def test_design_and_truth(power):
     assert cells["coulomb_friction:1@paper_S100/paper"]["records"] == 5
     assert "quadratic_damping:3@paper_S100/linear" in cells
     two = cells["quadratic_stiffness+coulomb_friction:5@ship_roll/paper"]
-    bounds = {("ship_roll", "paper", e): 0.01 for e in two["effects"]}
+    keys = power.bound_keys(two)  # each effect's own bound and its bound given the other
+    assert [k[2] for k in keys] == [
+        "quadratic_stiffness", "coulomb_friction",
+        "quadratic_stiffness given coulomb_friction=5",
+        "coulomb_friction given quadratic_stiffness=5",
+    ]  # fmt: skip
+    bounds = dict(zip(keys, (0.01, 0.001, 0.02, 0.002), strict=True))
     bounds[("paper_S100", "paper", "coloured_excitation")] = 4e-6
     bounds[("paper_S100", "paper", "measurement_noise")] = 1e-6
-    t = power.truth(two, bounds)
-    assert t["mu"] == pytest.approx(0.05) and t["b2"] == pytest.approx(0.05)
+    t = power.truth(two, bounds)  # two effects: each at 5 times its bound given the other
+    assert t["b2"] == pytest.approx(0.1) and t["mu"] == pytest.approx(0.01)
     wc = power.truth(cells["coloured_excitation:100@paper_S100/paper"], bounds)["wc"]
     assert wc == pytest.approx(1 / np.sqrt(100 * 4e-6))
     noise = power.truth(cells["measurement_noise:3@paper_S100/paper"], bounds)["noise_sd"]

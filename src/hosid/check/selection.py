@@ -19,12 +19,13 @@ coordinate and the quasi-likelihood ratio :math:`D_c` with its asymptotic p-valu
    an effect in 4 of the power study's 60 clean records at :math:`\alpha = 5\%`, and,
    with a first version of the screening, in 22 of 200 clean records of the independent
    simulator: the ratios' tails are heavier than :math:`\chi^2`'s.)  With the default
-   :math:`R = 40` (:data:`hosid.check.diagnose.DEFAULT_REPLICATES`), :math:`p^*_c \le 0.05`
-   means that at most one null record was as extreme (with :math:`R = 20`: none).  When no candidate
-   reaches :math:`p_c \le \alpha` the replicates are not screened (the calibration cannot
-   reject then), and the screening of the replicates stops as soon as enough of them are
-   as extreme as the best candidate for the decision to be known (its :math:`p^*` are
-   then lower bounds, all above :math:`\alpha`).
+   :math:`R = 40` (:data:`hosid.check.diagnose.DEFAULT_REPLICATES`),
+   :math:`p^*_c \le 0.05` means that at most one null record was as extreme (with
+   :math:`R = 20`: none).  When no candidate reaches :math:`p_c \le \alpha` the
+   replicates are not screened (the calibration cannot reject then), and the screening of
+   the replicates stops as soon as enough of them are as extreme as the best candidate
+   for the decision to be known (its :math:`p^*` are then lower bounds, all above
+   :math:`\alpha`).
 2. **The calibrated posterior agrees**: :math:`z_c` beyond the Bonferroni threshold of
    level :math:`\alpha/m` (one-sided at a boundary null; :func:`critical_z`).
 3. Of the candidates that pass, the smallest :math:`p_c` comes first;
