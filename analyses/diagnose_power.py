@@ -138,9 +138,10 @@ def design(records: int = 10, clean: int = 20, extra: int = 5) -> list[dict]:
 
 def bound_keys(cell: dict) -> list[tuple[str, str, str]]:
     """The bounds a cell's truth needs: each effect's own; with two or more effects also
-    each one's bound *given the others* (``"b2-effect given other=5"``), because an
-    effect changes the information about another (ship roll: Coulomb friction at 5 sd
-    doubles the bound of the quadratic stiffness, 0.0100 -> 0.0190).
+    each one's bound *given the others* (``"quadratic_stiffness given
+    coulomb_friction=5"``), because an effect changes the information about another (ship
+    roll: Coulomb friction at 5 sd doubles the bound of the quadratic stiffness, 0.0100 ->
+    0.0192).
     """
     r, s, eff = cell["regime"], cell["system"], cell["effects"]
     keys = [(r, s, e) for e in eff]
@@ -177,17 +178,20 @@ def truth(cell: dict, bounds: dict) -> dict[str, float]:
     return p
 
 
-def compute_bounds(keys: Iterable[tuple[str, str, str]], *, seed: int) -> dict:
+def compute_bounds(
+    keys: Iterable[tuple[str, str, str]], *, seed: int, known: dict | None = None
+) -> dict:
     """``(regime, system, effect) -> sd`` of the effect's regular coordinate; for a key
     ``"e given o=k,..."``, the full-state bound of the drift coefficient of ``e`` in the
     model base + e + o, at e = 0 and each ``o`` at ``k`` times its own bound (one step of
     the fixed point: the other's bound moves little, 0.00149 -> 0.00133 for friction).
+    ``known`` bounds (read from ``bounds.json``) are not computed again.
     """
     from hosid.model.information import candidate_bound, cramer_rao
     from hosid.model.model import Model
 
     keys = sorted(keys, key=lambda k: " given " in k[2])  # own bounds first
-    out = {}
+    out = dict(known or {})
     for regime, system, effect in keys:
         r = BY_NAME[regime]
         base, params = systems(regime)[system]
@@ -202,8 +206,9 @@ def compute_bounds(keys: Iterable[tuple[str, str, str]], *, seed: int) -> dict:
         model = Model.from_spec([base, e, *others])
         point = {"n1": 0.0, "n2": 0.0, **params}
         for o, k in others.items():
-            own = out.get((regime, system, o)) or candidate_bound(base, params, o, **sim)
-            _set(point, o, k * own)
+            if (regime, system, o) not in out:
+                out[(regime, system, o)] = candidate_bound(base, params, o, **sim)
+            _set(point, o, k * out[(regime, system, o)])
         point[COORDINATES[e].param] = 0.0
         crb = cramer_rao(model, {n: point[n] for n in model.param_names}, **sim)
         out[(regime, system, effect)] = crb.sd[COORDINATES[e].param]
@@ -343,7 +348,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     bounds = {tuple(k.split("|")): v for k, v in stored.items()}
     need = {k for c in cells for k in bound_keys(c)} - set(bounds)
     if need and not a.summary:
-        bounds.update(compute_bounds(sorted(need), seed=a.seed))
+        bounds = compute_bounds(sorted(need), seed=a.seed, known=bounds)
         bounds_path.write_text(json.dumps({"|".join(k): v for k, v in bounds.items()}, indent=1))
     if not a.summary:
         done = {(r["cell"], int(r["record"])) for r in read_csv(path)}
