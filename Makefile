@@ -53,6 +53,7 @@ analyses: $(STAMP)
 	$(PY) analyses/diagnose_confusion.py
 	$(PY) analyses/diagnose_power.py
 	$(PY) analyses/silverbox.py
+	$(PY) analyses/silverbox_coverage.py
 
 clean:
 	rm -rf $(VENV) demo-out analyses/out .pytest_cache .benchmarks build src/*.egg-info
