@@ -20,9 +20,17 @@ two calibrated numbers:
    :math:`\tfrac12\chi^2_0 + \tfrac12\chi^2_1` when the null lies on the boundary of the
    parameter space.
 
-The equations and their weight are prepared at ``start`` (the model's estimate) with
-the effect at its null, so the null fit is the model's own; the free fit of a drift
-effect or of the noise uses the same equations and weight.  The coloured force's free
+The equations and their weight are first prepared at ``start`` (the model's estimate)
+with the effect at its null.  A drift effect's free fit then re-prepares them at its
+estimate (a second round, as :func:`hosid.inference.estimate.estimate` does) and its
+null fit is redone with the free fit's equations and weight, so that :math:`D` compares
+both fits under the extended model's weight.  That weight is consistent under the null
+and efficient under the alternative, where the null's own weight counts the missing
+effect's signal as noise of the equations: on 12 ship-roll records with a quadratic
+stiffness at 5 Cramer-Rao sd, :math:`(D - 1)/25` rose from 0.44 (the null's weight) to
+0.67 and the mean :math:`z` from 3.4 to 4.1, while on 16 clean ship-roll records
+:math:`D` kept its :math:`\chi^2_1` mean (0.99).  The noise's free fit keeps the null's
+equations and weight (one round; the second was not measured).  The coloured force's free
 fit takes three rounds (:attr:`Coordinate.rounds`) from the corner :math:`2\omega_N` the
 fit starts from (:func:`hosid.inference.pilot.initial_theta`), each re-preparing the
 equations and their weight at its current estimate: the velocity restoration of the
@@ -85,7 +93,7 @@ class Coordinate:
     label: str
     boundary: bool  #: the null lies on the boundary of the parameter space (u >= 0)
     kind: str = "identity"  #: "identity", "inverse" (wc) or "square" (noise_sd)
-    rounds: int = 1  #: fewest rounds of :func:`weigh` (module docstring)
+    rounds: int = 2  #: fewest rounds of :func:`weigh` (module docstring)
 
     def to_param(self, u):
         """The model's parameter at coordinate ``u``."""
@@ -121,7 +129,7 @@ COORDINATES: dict[str, Coordinate] = {
     "coulomb_friction": Coordinate("mu", "mu", True),
     "excitation_mean": Coordinate("m", "m", False),
     "coloured_excitation": Coordinate("wc", "1/wc", True, "inverse", rounds=3),
-    "measurement_noise": Coordinate("noise_sd", "noise_sd^2", True, "square"),
+    "measurement_noise": Coordinate("noise_sd", "noise_sd^2", True, "square", rounds=1),
 }
 
 
@@ -224,11 +232,11 @@ def weigh(
     start : mapping
         ``model``'s estimate: the fits start there with the effect at its null.
     rounds : int
-        Rounds of (prepare the equations at the current value, solve).  One round, with
-        the equations prepared at ``start`` and the effect at its null, is a test of the
-        null; a second round re-prepares them at the extended estimate (the estimate of
-        :func:`hosid.inference.estimate.estimate`), which changes the efficiency of a
-        strong effect's estimate, not the test's level.
+        The fewest rounds of (prepare the equations at the current value, solve); the
+        coordinate's own (:attr:`Coordinate.rounds`) when more.  The first prepares them
+        at ``start`` with the effect at its null, the next at the extended estimate (as
+        :func:`hosid.inference.estimate.estimate` does); a drift effect's null fit is
+        then redone with the last round's equations and weight (module docstring).
     states : dict, optional
         A cache of record states shared by the candidates of one record.
 
@@ -297,6 +305,13 @@ def weigh(
         raise HosidInputError(f"{effect}: {exc}") from None
     if not np.all(np.isfinite(u)):
         raise HosidInputError(f"{effect}: the estimating equations have no finite solution")
+    if coord.kind == "identity" and ql is not null:  # one weight: the free fit's (docstring)
+        ql0 = Transformed.of(ql, fixed)
+        v = solve(
+            ql0, u[free], log_params=[free.index(k) for k in logs], scale=0.1 * scale[free],
+            lower=lower[free], upper=upper[free],
+        )  # fmt: skip
+        J0 = float(-2.0 * ql0(v))
     J = float(-2.0 * qlu(u))
     df = ql.k - len(names)
     p_hansen = float(stats.chi2.sf(J, df)) if df > 0 else math.nan
