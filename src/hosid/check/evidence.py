@@ -278,6 +278,14 @@ def weigh(
         v = np.asarray(v, dtype=float)
         return to_theta(np.insert(v, i, 0.0, axis=-1))
 
+    def null_fit(q, start):  # the fit with the effect at its null: (J, free parameters)
+        ql0 = Transformed.of(q, fixed)
+        v = solve(
+            ql0, start, log_params=[free.index(k) for k in logs], scale=0.1 * scale[free],
+            lower=lower[free], upper=upper[free],
+        )  # fmt: skip
+        return float(-2.0 * ql0(v)), v
+
     rounds = max(int(rounds), coord.rounds)
     try:
         ql = null = quasi_likelihood(
@@ -285,13 +293,7 @@ def weigh(
         )
         scale = typical_scale(ext, state, to_theta(u))
         scale[i] = max(abs(u[i]), 1e-3 * (upper[i] - lower[i]))
-        ql0 = Transformed.of(null, fixed)
-        v = solve(
-            ql0, u[free], log_params=[free.index(k) for k in logs], scale=0.1 * scale[free],
-            lower=lower[free], upper=upper[free],
-        )  # fmt: skip
-        J0 = float(-2.0 * ql0(v))
-        u[free] = v
+        J0, u[free] = null_fit(null, u[free])
         if coord.kind == "inverse":  # start coloured, as the fit does (module docstring)
             u[i] = 1.0 / support[coord.param].upper
         for _ in range(rounds):
@@ -301,17 +303,12 @@ def weigh(
                 )
             qlu = Transformed.of(ql, to_theta)
             u = solve(qlu, u, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
+        if coord.kind == "identity" and ql is not null:  # one weight: the free fit's
+            J0, _ = null_fit(ql, u[free])
     except ValueError as exc:
         raise HosidInputError(f"{effect}: {exc}") from None
     if not np.all(np.isfinite(u)):
         raise HosidInputError(f"{effect}: the estimating equations have no finite solution")
-    if coord.kind == "identity" and ql is not null:  # one weight: the free fit's (docstring)
-        ql0 = Transformed.of(ql, fixed)
-        v = solve(
-            ql0, u[free], log_params=[free.index(k) for k in logs], scale=0.1 * scale[free],
-            lower=lower[free], upper=upper[free],
-        )  # fmt: skip
-        J0 = float(-2.0 * ql0(v))
     J = float(-2.0 * qlu(u))
     df = ql.k - len(names)
     p_hansen = float(stats.chi2.sf(J, df)) if df > 0 else math.nan
