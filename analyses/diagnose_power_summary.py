@@ -193,7 +193,7 @@ def timing(rows: list[dict]) -> str:
     return (
         f"{len(sec)} records, {sec.sum() / 3600:.2f} h in all; per record median "
         f"{np.median(sec):.1f} s, 90 % {np.quantile(sec, 0.9):.1f} s, max {sec.max():.1f} s "
-        "(one core at nice 10 on a shared 2-core machine).\n"
+        "(wall time of each record as run: the machine's load is not recorded).\n"
     )
 
 
