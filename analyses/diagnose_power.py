@@ -22,9 +22,11 @@ at 3 and 5 sd
 and with two effects, 5 at the other strengths (the machine is shared: the study was
 cut to fit).
 
-``run_one(row, seed_sequence)`` is a pure function of one design row and its seed (a
-future batch task); ``main`` is a resumable single-process loop that appends one CSV
-row per record (``results/diagnose_power/power.csv``) and skips the rows already there.
+``run_one(row, seed_sequence)`` is a pure function of one design row and its seed;
+``main`` is a resumable single-process loop that appends one CSV row per record
+(``results/diagnose_power/power.csv``) and skips the rows already there; with ``--batch``
+the records run as tasks of ``hosid batch simulate-study`` on a local dask cluster
+(``diagnose_power_batch.py``: the same records, the same random numbers).
 Record ``k`` of a cell is seeded by ``SeedSequence([seed, crc32(cell), k])``.  The
 diagnosis uses the screened posterior for the gaps (``posterior="screen"``, the same
 quasi-posterior the command samples with emcee) and no candidate gaps (report only).
@@ -40,7 +42,7 @@ import math
 import sys
 import time
 import zlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -178,43 +180,6 @@ def truth(cell: dict, bounds: dict) -> dict[str, float]:
     return p
 
 
-def compute_bounds(
-    keys: Iterable[tuple[str, str, str]], *, seed: int, known: dict | None = None
-) -> dict:
-    """``(regime, system, effect) -> sd`` of the effect's regular coordinate; for a key
-    ``"e given o=k,..."``, the full-state bound of the drift coefficient of ``e`` in the
-    model base + e + o, at e = 0 and each ``o`` at ``k`` times its own bound (one step of
-    the fixed point: the other's bound moves little, 0.00149 -> 0.00133 for friction).
-    ``known`` bounds (read from ``bounds.json``) are not computed again.
-    """
-    from hosid.model.information import candidate_bound, cramer_rao
-    from hosid.model.model import Model
-
-    keys = sorted(keys, key=lambda k: " given " in k[2])  # own bounds first
-    out = dict(known or {})
-    for regime, system, effect in keys:
-        r = BY_NAME[regime]
-        base, params = systems(regime)[system]
-        rng = np.random.default_rng(np.random.SeedSequence([seed, zlib.crc32(regime.encode())]))
-        sim = {"duration": r.duration, "dt": r.dt, "rng": rng,
-               "sim_duration": max(40000.0, 20.0 * r.duration)}  # fmt: skip
-        if " given " not in effect:
-            out[(regime, system, effect)] = candidate_bound(base, params, effect, **sim)
-            continue
-        e, given = effect.split(" given ")
-        others = {o: float(k) for o, k in (g.split("=") for g in given.split(","))}
-        model = Model.from_spec([base, e, *others])
-        point = {"n1": 0.0, "n2": 0.0, **params}
-        for o, k in others.items():
-            if (regime, system, o) not in out:
-                out[(regime, system, o)] = candidate_bound(base, params, o, **sim)
-            _set(point, o, k * out[(regime, system, o)])
-        point[COORDINATES[e].param] = 0.0
-        crb = cramer_rao(model, {n: point[n] for n in model.param_names}, **sim)
-        out[(regime, system, effect)] = crb.sd[COORDINATES[e].param]
-    return out
-
-
 def run_one(row: dict, ss: np.random.SeedSequence) -> dict:
     """Simulate one record of a design row and diagnose it: one result row.
 
@@ -225,15 +190,6 @@ def run_one(row: dict, ss: np.random.SeedSequence) -> dict:
 
     t0 = time.perf_counter()
     sim_ss, diag_ss = ss.spawn(2)
-    hidden = sorted(row["effects"])
-    out = {k: row[k] for k in ("cell", "regime", "system", "base", "record")}
-    out.update(
-        hidden="+".join(hidden) or "none",
-        strength=max(row["effects"].values(), default=0.0),
-        truth=json.dumps({k: round(v, 8) for k, v in row["truth"].items()}),
-        replicates=row["replicates"],
-        error="",
-    )
     try:
         rec, _ = independent_simulate(
             row["truth"], duration=row["duration"], dt=row["dt"], rng=np.random.default_rng(sim_ss)
@@ -243,21 +199,51 @@ def run_one(row: dict, ss: np.random.SeedSequence) -> dict:
             posterior="screen", candidate_gaps=False,
         )  # fmt: skip
     except Exception as exc:  # a failed record is a row too (counted, not hidden)
-        out.update(
-            error=f"{type(exc).__name__}: {exc}", seconds=round(time.perf_counter() - t0, 1)
-        )
+        error = f"{type(exc).__name__}: {exc}"
+        return result_row(row, seconds=time.perf_counter() - t0, error=error)
+    return result_row(
+        row,
+        named=d.named_effects,
+        gaps=d.gaps,
+        evidence=d.rounds[0].numbers(),
+        estimates={s.effect: s.posterior()["mean"] for s in d.steps},
+        rounds_calibrated=sum(r.calibrated for r in d.rounds),
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def result_row(
+    row: dict,
+    *,
+    named: Sequence[str] = (),
+    gaps: Sequence[float] = (),
+    evidence: dict | None = None,
+    estimates: dict | None = None,
+    rounds_calibrated: int = 0,
+    seconds: float,
+    error: str = "",
+) -> dict:
+    """The study's row of one diagnosed record (:data:`FIELDS`), whichever way it ran
+    (:func:`run_one` here, or a task of ``hosid batch``: ``diagnose_power_batch.py``).
+    ``evidence``: the first round's ``{effect: [z, D, p, adjusted p]}``.
+    """
+    hidden = sorted(row["effects"])
+    out = {k: row[k] for k in ("cell", "regime", "system", "base", "record")}
+    out.update(
+        hidden="+".join(hidden) or "none",
+        strength=max(row["effects"].values(), default=0.0),
+        truth=json.dumps({k: round(v, 8) for k, v in row["truth"].items()}),
+        replicates=row["replicates"],
+        seconds=round(seconds, 1),
+        error=error,
+    )
+    if error:
         return out
-    named = d.named_effects
-    gaps = [d.gap_before, *(s.gap_after for s in d.steps)]
-    ev = {
-        c: [
-            round(e.z, 3),
-            round(e.D, 3),
-            float(f"{e.p_value:.4g}"),
-            round(d.rounds[0].adjusted(c), 4),
-        ]
-        for c, e in d.rounds[0].evidence.items()
-    }
+    named = list(named)
+    ev = {}  # a value JSON could not hold (an infinite z) comes back as None
+    for c, e in (evidence or {}).items():
+        z, D, p, pa = (math.nan if v is None else float(v) for v in e)
+        ev[c] = [round(z, 3), round(D, 3), float(f"{p:.4g}"), round(pa, 4)]
     out.update(
         named="+".join(named) or "none",
         first=named[0] if named else "none",
@@ -267,9 +253,8 @@ def run_one(row: dict, ss: np.random.SeedSequence) -> dict:
         gaps=";".join(f"{g:.3f}" for g in gaps),
         shrank=int(all(b < a for a, b in itertools.pairwise(gaps))) if named else "",
         evidence=json.dumps(ev),
-        estimates=json.dumps({s.effect: round(s.posterior()["mean"], 8) for s in d.steps}),
-        rounds_calibrated=sum(r.calibrated for r in d.rounds),
-        seconds=round(time.perf_counter() - t0, 1),
+        estimates=json.dumps({e: round(v, 8) for e, v in (estimates or {}).items()}),
+        rounds_calibrated=rounds_calibrated,
     )
     return out
 
@@ -332,6 +317,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=None, help="override (tests only)")
     ap.add_argument("--seed", type=int, default=SEED)
     ap.add_argument("--summary", action="store_true", help="tables and figure only")
+    ap.add_argument("--batch", action="store_true", help="run through hosid batch (dask)")
+    ap.add_argument("--workers", type=int, default=None, help="--batch: local workers")
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
@@ -348,6 +335,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     bounds = {tuple(k.split("|")): v for k, v in stored.items()}
     need = {k for c in cells for k in bound_keys(c)} - set(bounds)
     if need and not a.summary:
+        from diagnose_power_bounds import compute_bounds
+
         bounds = compute_bounds(sorted(need), seed=a.seed, known=bounds)
         bounds_path.write_text(json.dumps({"|".join(k): v for k, v in bounds.items()}, indent=1))
     if not a.summary:
@@ -365,6 +354,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             w = csv.DictWriter(fh, FIELDS)
             if new:
                 w.writeheader()
+            if a.batch and todo:
+                import diagnose_power_batch as batch
+
+                batch.run(todo, a.out, replicates=a.replicates, seed=a.seed, workers=a.workers)
+                w.writerows(batch.collect(todo, a.out))
+                todo = []
             for i, row in enumerate(todo):
                 ss = np.random.SeedSequence(
                     [a.seed, zlib.crc32(row["cell"].encode()), row["record"]]

@@ -252,3 +252,29 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert "--cost does not apply to --analysis diagnose" in capsys.readouterr().err
     assert main(["batch"]) == 2
     assert not (tmp_path / "o").exists()
+
+
+def test_design_entropy_names_the_streams_and_later_options_keep_ids(records, tmp_path):
+    """A row's ``entropy`` gives record i the stream SeedSequence([seed, *entropy, i]) (a
+    study's own streams); diagnose's later options enter the id only off their default.
+    """
+    rows = _design(tmp_path, "name,key,seeds,a1,a2,S0,entropy\nA,0,2,0.5,25,100,11 12\n")
+    assert rows[0].entropy == (11, 12)
+    t = design_tasks(rows, analysis="estimate", options={}, seed=7)[1]
+    ref = np.random.SeedSequence([7, 11, 12, 1])
+    np.testing.assert_array_equal(t.seed_sequence().generate_state(4), ref.generate_state(4))
+    keyed = design_tasks(_design(tmp_path, "name,a1,a2,S0\nA,0.5,25,100\n"), analysis="estimate",
+                         options={}, seed=7)[0]  # fmt: skip
+    assert t.prepare().id != keyed.prepare().id  # the entropy is part of the id
+    with pytest.raises(HosidInputError, match="entropy"):
+        _design(tmp_path, "name,a1,a2,S0,entropy\nA,0.5,25,100,x\n")
+    path = str(records / "r0.npz")
+
+    def diag_id(**options):
+        return record_tasks([path], analysis="diagnose", options=options)[0].prepare().id
+
+    default = diag_id()
+    assert diag_id(posterior="emcee", candidate_gaps=True) == default
+    assert diag_id(posterior="screen") != default != diag_id(candidate_gaps=False)
+    with pytest.raises(HosidInputError, match="option posterior of diagnose"):
+        diag_id(posterior="nuts")

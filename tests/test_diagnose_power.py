@@ -1,5 +1,6 @@
 """The power study of ``diagnose`` (analyses/diagnose_power.py) on tiny settings: one
-clean record and one with friction, 300 s each, resumed, summarized."""
+clean record and one with friction, 300 s each, resumed, summarized; the clean record
+again through ``hosid batch`` (the same row)."""
 
 import json
 import sys
@@ -7,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from hosid.batch import read_results
 
 ANALYSES = Path(__file__).resolve().parents[1] / "analyses"
 
@@ -53,10 +56,20 @@ def test_design_and_truth(power):
     assert linear["a1"] == pytest.approx(0.5 + 0.5 * np.sqrt(8 / np.pi) * s, rel=1e-9)
 
 
-def test_tiny_run_resumes_and_summarizes(power, tmp_path):
-    cells = ["none:0@paper_S100/paper", "coulomb_friction:5@paper_S100/paper"]
-    args = ["--cells", *cells, "--records", "1", "--duration", "300", "--replicates", "19"]
-    assert power.main([*args, "--out", str(tmp_path)]) == 0
+CELLS = ["none:0@paper_S100/paper", "coulomb_friction:5@paper_S100/paper"]
+TINY = ["--records", "1", "--duration", "300", "--replicates", "19"]
+
+
+@pytest.fixture(scope="module")
+def tiny(power, tmp_path_factory):
+    """The single-process run of the two cells (one record each)."""
+    out = tmp_path_factory.mktemp("power")
+    assert power.main(["--cells", *CELLS, *TINY, "--out", str(out)]) == 0
+    return out
+
+
+def test_tiny_run_resumes_and_summarizes(power, tiny):
+    cells, args, tmp_path = CELLS, ["--cells", *CELLS, *TINY], tiny
     rows = sorted(power.read_csv(tmp_path / "power.csv"), key=lambda r: r["hidden"] != "none")
     assert [r["cell"] for r in rows] == cells and all(r["error"] == "" for r in rows)
     bounds = json.loads((tmp_path / "bounds.json").read_text())
@@ -72,3 +85,19 @@ def test_tiny_run_resumes_and_summarizes(power, tmp_path):
     text = (tmp_path / "power.md").read_text()
     assert "## False alarms on clean records" in text and "| paper_S100 | paper | 1 |" in text
     assert (tmp_path / "power.png").is_file()
+
+
+def test_batch_run_gives_the_same_rows(power, tiny, tmp_path):
+    """``--batch``: the record simulated and diagnosed as a task of ``hosid batch
+    simulate-study`` (the cell's own streams) gives the single-process row.
+    """
+    args = ["--cells", CELLS[0], *TINY, "--batch", "--workers", "1", "--out", str(tmp_path)]
+    assert power.main(args) == 0
+    design = json.loads((tmp_path / "batch" / "design_paper.json").read_text())
+    assert [(d["name"], d["seeds"]) for d in design] == [(CELLS[0], 1)]
+    (row,) = power.read_csv(tmp_path / "power.csv")
+    (ref,) = [r for r in power.read_csv(tiny / "power.csv") if r["cell"] == CELLS[0]]
+    for key in ("named", "gaps", "evidence", "truth", "rounds_calibrated", "error"):
+        assert row[key] == ref[key], key
+    (task,) = read_results(tmp_path / "batch" / "paper" / "results.csv")
+    assert task["status"] == "ok" and task["a2_q05"] < task["a2_mean"] < task["a2_q95"]

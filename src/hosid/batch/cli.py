@@ -97,6 +97,18 @@ def _flags(base) -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
             ("diagnose",),
             {"type": n(0), "metavar": "N", "help": "default: as many as supported"},
         ),
+        (
+            "--posterior",
+            "posterior",
+            ("diagnose",),
+            {"choices": ("emcee", "screen"), "help": "how models are fitted; default emcee"},
+        ),
+        (
+            "--no-candidate-gaps",
+            "candidate_gaps",
+            ("diagnose",),
+            {"action": "store_false", "help": "no predictive gap for every candidate"},
+        ),
     )
 
 

@@ -16,6 +16,10 @@ column        meaning
               ``FILE.py:FUNCTION`` (relative to the design's folder) or
               ``module:function``, called as ``f(params, duration=, dt=, rng=, name=)``
               and returning a :class:`~hosid.record.Record` or ``(record, velocity)``
+``entropy``   optional integers (a JSON list, or separated by spaces) that name the
+              row's random streams instead of its key: record ``i`` uses
+              ``SeedSequence([seed, *entropy, i])`` (a study's own streams, so that
+              the batch reproduces records it made before)
 a1 ... S0     the true parameters (:data:`hosid.model.simulate.SIM_KEYS`); empty = absent
 ============  =====================================================================
 
@@ -50,7 +54,7 @@ from .tasks import DesignPoint, Task, options_for
 __all__ = ["COLUMNS", "DesignRow", "design_tasks", "load_simulator", "read_design", "simulate"]
 
 #: Columns besides the parameters.
-COLUMNS = ("name", "key", "seeds", "duration", "dt", "simulator")
+COLUMNS = ("name", "key", "seeds", "duration", "dt", "simulator", "entropy")
 
 
 @dataclass(frozen=True)
@@ -65,6 +69,7 @@ class DesignRow:
     dt: float = 0.02
     simulator: str = "hosid"
     folder: str = field(default=".", compare=False)  # the design file's (read_design)
+    entropy: tuple[int, ...] = ()
 
     def points(self, folder: str | Path | None = None) -> list[DesignPoint]:
         """The row's records (``folder``, default the design file's, resolves a relative
@@ -81,6 +86,7 @@ class DesignRow:
                 self.dt,
                 self.simulator,
                 ref,
+                tuple(self.entropy),
             )
             for i in range(self.seeds)
         ]
@@ -101,6 +107,13 @@ def _integer(value: Any, what: str, minimum: int) -> int:
     if x != int(x) or x < minimum:
         raise HosidInputError(f"{what}: must be an integer >= {minimum}, got {value!r}")
     return int(x)
+
+
+def _entropy(value: Any, what: str) -> tuple[int, ...]:
+    items = value.split() if isinstance(value, str) else value
+    if not isinstance(items, list | tuple) or not items:
+        raise HosidInputError(f"{what}: a list of integers, got {value!r}")
+    return tuple(_integer(v, what, 0) for v in items)
 
 
 def _row(i: int, raw: Mapping[str, Any], where: str, folder: Path) -> DesignRow:
@@ -124,6 +137,7 @@ def _row(i: int, raw: Mapping[str, Any], where: str, folder: Path) -> DesignRow:
         dt=_number(cells.get("dt", 0.02), f"{at}, dt"),
         simulator=str(cells.get("simulator", "hosid")).strip(),
         folder=str(folder),
+        entropy=_entropy(cells["entropy"], f"{at}, entropy") if "entropy" in cells else (),
     )
     try:
         check_simulation(row.params, row.duration, row.dt, 1)

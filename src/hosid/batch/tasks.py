@@ -15,9 +15,15 @@ Its **random stream** is
 
 the child ``SeedSequence(s).spawn`` would give at the position ``k``: for a record
 ``k = (h,)`` with ``h`` its 64-bit content hash, for the ``i``-th seed of a design row
-with key ``r`` ``k = (r, i)``.  Its two children ``(k, 0)`` and ``(k, 1)`` drive the
-simulation and the analysis.  Nothing depends on the worker that runs the task or on the
-order in which tasks finish.
+with key ``r`` ``k = (r, i)``.  A design row may instead name its records' streams
+by its own integers ``e`` (its ``entropy``, e.g. a hash of a study's cell name): the
+``i``-th seed is then :math:`\mathrm{SeedSequence}([s, e_1, \dots, i])`, with no
+spawn key.  Its two children (``spawn`` positions 0 and 1) drive the simulation and the
+analysis.  Nothing depends on the worker that runs the task or on the order in which
+tasks finish.
+
+Options added to an analysis after batches had run (:data:`LATER`) enter the id only
+when they differ from their default: the finished rows of those batches stay valid.
 """
 
 from __future__ import annotations
@@ -40,6 +46,8 @@ from ..record import Record
 
 __all__ = [
     "ANALYSES",
+    "CHOICES",
+    "LATER",
     "MANIFEST_SUFFIXES",
     "OPTIONS",
     "DesignPoint",
@@ -80,7 +88,16 @@ OPTIONS: dict[str, dict[str, Any]] = {
         "alpha": 0.05,
         "threshold": 3.0,
         "max_effects": None,
+        "posterior": "emcee",
+        "candidate_gaps": True,
     },
+}
+#: Options added after batches had run: left out of a task's id at their default.
+LATER: dict[str, tuple[str, ...]] = {"diagnose": ("posterior", "candidate_gaps")}
+#: The values an option may take (the others are checked by the analysis itself).
+CHOICES: dict[str, tuple[Any, ...]] = {
+    "posterior": ("emcee", "screen"),
+    "candidate_gaps": (True, False),
 }
 #: Files read as lists of records (one path or glob a line, ``#`` comments).
 MANIFEST_SUFFIXES = (".txt", ".lst", ".list")
@@ -94,7 +111,7 @@ def options_for(analysis: str, options: Mapping[str, Any] | None = None) -> dict
     Raises
     ------
     HosidInputError
-        For an unknown analysis or option.
+        For an unknown analysis or option, or a value outside :data:`CHOICES`.
     """
     if analysis not in ANALYSES:
         raise HosidInputError(f"unknown analysis {analysis!r}: {', '.join(ANALYSES)}")
@@ -109,6 +126,13 @@ def options_for(analysis: str, options: Mapping[str, Any] | None = None) -> dict
         given["model"] = ",".join(given["model"])
     if given.get("candidates") is not None:
         given["candidates"] = list(given["candidates"])
+    for name, value in given.items():
+        allowed = CHOICES.get(name)
+        if allowed is not None and not any(
+            value is a or (type(value) is type(a) and value == a) for a in allowed
+        ):
+            choices = ", ".join(repr(a) for a in allowed)
+            raise HosidInputError(f"option {name} of {analysis}: {choices}; got {value!r}")
     return {**OPTIONS[analysis], **given}
 
 
@@ -122,7 +146,8 @@ def child_seed(seed: np.random.SeedSequence, i: int) -> np.random.SeedSequence:
 @dataclass(frozen=True)
 class DesignPoint:
     """One record to simulate: parameters, length, simulator, and its place in the
-    design (row ``name`` with seed key ``key``, seed number ``index``).
+    design (row ``name`` with seed key ``key``, seed number ``index``; ``entropy``, when
+    given, names its random stream instead of the key: module docstring).
     """
 
     name: str
@@ -133,6 +158,7 @@ class DesignPoint:
     dt: float = 0.02
     simulator: str = "hosid"
     ref: str = field(default="", compare=False)  # the resolved simulator, not in the id
+    entropy: tuple[int, ...] = ()
 
     @property
     def label(self) -> str:
@@ -141,13 +167,16 @@ class DesignPoint:
 
     def describe(self) -> dict[str, Any]:
         """What the simulated record depends on (part of the task's id)."""
-        return {
+        out = {
             "params": {k: float(v) for k, v in sorted(self.params.items())},
             "duration": float(self.duration),
             "dt": float(self.dt),
             "simulator": self.simulator,
             "key": [int(self.key), int(self.index)],
         }
+        if self.entropy:  # absent otherwise: the ids of keyed designs stay as they were
+            out["entropy"] = [int(e) for e in self.entropy]
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,10 +256,13 @@ class Task:
         """
         from .. import __version__
 
+        defaults = OPTIONS[self.analysis]
+        later = LATER.get(self.analysis, ())
+        options = {k: v for k, v in self.options.items() if not (k in later and v == defaults[k])}
         text = json.dumps(
             {
                 "analysis": self.analysis,
-                "options": dict(self.options),
+                "options": options,
                 "seed": int(self.seed),
                 **self.source,
                 "truths": dict(self.truths or {}),
@@ -242,13 +274,20 @@ class Task:
 
     @property
     def spawn_key(self) -> tuple[int, ...]:
-        """The task's position among ``SeedSequence(seed).spawn`` (module docstring)."""
+        """The task's position among ``SeedSequence(seed).spawn`` (module docstring);
+        empty for a design point with its own entropy.
+        """
         if self.point is not None:
+            if self.point.entropy:
+                return ()
             return (int(self.point.key), int(self.point.index))
         return (int(self.source["record_hash"], 16),)
 
     def seed_sequence(self) -> np.random.SeedSequence:
         """The task's random stream (module docstring)."""
+        if self.point is not None and self.point.entropy:
+            words = [int(self.seed), *(int(e) for e in self.point.entropy), int(self.point.index)]
+            return np.random.SeedSequence(words)
         return np.random.SeedSequence(int(self.seed), spawn_key=self.spawn_key)
 
 

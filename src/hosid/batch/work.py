@@ -16,6 +16,7 @@ equivalent damping of eq (65), :math:`a_{1eq} = a_1 + n_1\sqrt{8/\pi}\,\sigma_{\
 
 from __future__ import annotations
 
+import json
 import math
 import tempfile
 import time
@@ -121,20 +122,47 @@ def _estimate(record: Record, options: Mapping, rng, truths, keep: bool):
     return params, row, None, getattr(est, "checks", None) or [], list(est.model.names)
 
 
+def _sample_stats(check) -> dict[str, dict[str, float]]:
+    """Per parameter summary of a screened posterior's draws (no chains: no R-hat, ESS)."""
+    q = np.quantile(check.sample, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
+    return {
+        p: {
+            "mean": float(np.mean(check.sample[:, i])),
+            "sd": float(np.std(check.sample[:, i], ddof=1)),
+            **{name: float(v) for name, v in zip(_QUANTILES, q[:, i], strict=True)},
+            "min": float(np.min(check.sample[:, i])),
+            "max": float(np.max(check.sample[:, i])),
+        }
+        for i, p in enumerate(check.model.param_names)
+    }
+
+
 def _diagnose(record: Record, options: Mapping, rng, truths, keep: bool):
+    """``diagnose``; the row also holds the gap after each step (``gaps``), every first-round
+    candidate's evidence (``evidence``: JSON ``{effect: [z, D, p, adjusted p]}``) and the
+    named parameters' posterior means (``estimates``, JSON).
+    """
     from ..check.diagnose import diagnose
+    from ..output.results import jsonable
 
     t0 = time.perf_counter()
     settings = {k: options[k] for k in OPTIONS["diagnose"] if k != "model"}
     d = diagnose(record, options["model"], rng=rng, **settings)
     rep = d.report()
-    tree = d.final_tree
-    params, row = _draw_stats(tree)
+    tree = d.final.tree  # None with posterior="screen"
+    if tree is not None:
+        params, row = _draw_stats(tree)
+    else:
+        params, row = _sample_stats(d.final), {}
     row.update(
         named_effect="+".join(rep["named_effects"]),
         decision=rep["decision"],
         gap_before=rep["gap_before"],
         gap_after=rep["gap_after"],
+        gaps=";".join(repr(float(g)) for g in d.gaps),
+        evidence=json.dumps(jsonable(d.rounds[0].numbers() if d.rounds else {})),
+        estimates=json.dumps({s.effect: s.posterior()["mean"] for s in d.steps}),
+        rounds_calibrated=sum(r.calibrated for r in d.rounds),
         fit_seconds=time.perf_counter() - t0,
     )
     row["final_model"] = "+".join(rep["final_model"])

@@ -136,6 +136,11 @@ class Diagnosis:
         return self.final.tree
 
     @property
+    def gaps(self) -> list[float]:
+        """The total gap of the base model and after each named effect, in order."""
+        return [self.base.total, *(s.gap_after for s in self.steps)]
+
+    @property
     def gap_before(self) -> float:
         """The base model's total gap."""
         return self.base.total

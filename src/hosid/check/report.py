@@ -179,7 +179,7 @@ def diagnosis_report(diag: Diagnosis) -> dict[str, Any]:
         "p_after": diag.final.p_value,
         "hansen_before": diag.base.hansen,
         "hansen_after": diag.final.hansen,
-        "gaps": [diag.gap_before, *(st.gap_after for st in diag.steps)],
+        "gaps": diag.gaps,
         "steps": [
             _step_row(st, diag.steps[i - 1].check if i else diag.base)
             for i, st in enumerate(diag.steps)

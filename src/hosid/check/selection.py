@@ -108,6 +108,12 @@ class Round:
             return None
         return min(self.evidence, key=lambda c: (self.evidence[c].p_value, -self.evidence[c].D))
 
+    def numbers(self) -> dict[str, list[float]]:
+        """Every candidate's three numbers and its calibrated p-value:
+        ``{effect: [z, D, p, adjusted p]}``.
+        """
+        return {c: [ev.z, ev.D, ev.p_value, self.adjusted(c)] for c, ev in self.evidence.items()}
+
     def as_dict(self) -> dict[str, Any]:
         """Plain numbers for reports: every candidate's evidence and calibration."""
         rows = []
