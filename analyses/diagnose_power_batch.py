@@ -19,6 +19,7 @@ table ``results.csv``; :func:`collect` turns its rows into the study's rows
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import zlib
@@ -35,10 +36,12 @@ def cell_entropy(cell: str) -> list[int]:
     return [zlib.crc32(cell.encode())]
 
 
-def designs(rows: Sequence[dict]) -> dict[str, list[dict]]:
+def designs(rows: Sequence[dict], folder: Path) -> dict[str, list[dict]]:
     """``base -> design rows`` for the study's rows (one design row a cell, its records
-    ``0 .. n - 1`` as seed numbers).
+    ``0 .. n - 1`` as seed numbers), to be written in ``folder`` (the simulator's path is
+    relative to it: a task's id does not depend on where the project lies).
     """
+    simulator = os.path.relpath(SIMULATOR, folder)
     out: dict[str, list[dict]] = {}
     seen: dict[str, dict] = {}
     for row in rows:
@@ -50,7 +53,7 @@ def designs(rows: Sequence[dict]) -> dict[str, list[dict]]:
                 "seeds": 0,
                 "duration": row["duration"],
                 "dt": row["dt"],
-                "simulator": f"{SIMULATOR}:simulate",
+                "simulator": f"{simulator}:simulate",
                 "entropy": cell_entropy(row["cell"]),
                 **row["truth"],
             }
@@ -71,7 +74,7 @@ def run(
     """
     folder = out / "batch"
     folder.mkdir(parents=True, exist_ok=True)
-    for base, design in designs(rows).items():
+    for base, design in designs(rows, folder).items():
         path = folder / f"design_{base}.json"
         path.write_text(json.dumps(design, indent=1) + "\n")
         cmd = [
