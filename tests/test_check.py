@@ -21,6 +21,7 @@ from scipy import stats
 
 import hosid.check.diagnose as dg
 from hosid.check.diagnose import diagnose
+from hosid.check.evidence import null_moments
 from hosid.check.gaps import gaps, robust_z
 from hosid.check.measures import (
     ENERGY_LEVELS,
@@ -33,7 +34,7 @@ from hosid.check.measures import (
 )
 from hosid.check.model_check import check_model
 from hosid.check.posterior import screen_sample
-from hosid.check.selection import Round
+from hosid.check.selection import Round, null_covariances, weigh_round
 from hosid.check.statistics import potential
 from hosid.errors import HosidInputError
 from hosid.inference.estimate import estimate
@@ -347,18 +348,44 @@ def test_diverging_draws_give_an_infinite_gap(clean_1000, monkeypatch):
     assert chk.failed_replicates == 5 and chk.p_value == 0.0
 
 
-def test_check_keeps_its_replicate_records(clean_1000):
+@pytest.fixture(scope="module")
+def kept(clean_1000):
+    """A screened check of the paper model that keeps its 8 replicate records."""
     seeds = np.random.SeedSequence(3).spawn(8)
     chk = check_model(
         clean_1000, "paper", rng=np.random.default_rng(0), replicate_seeds=seeds,
         method="screen", keep_replicates=True,
     )  # fmt: skip
+    return chk, seeds
+
+
+def test_check_keeps_its_replicate_records(clean_1000, kept):
+    chk, seeds = kept
     assert len(chk.replicates) == 8 == chk.draws.shape[0]
     # each replicate is the model at its draw on its seed (common random numbers)
     again = Model.from_spec("paper").simulate(
         chk.draws[3], duration=clean_1000.duration, dt=DT, rng=np.random.default_rng(seeds[3])
     )
     np.testing.assert_array_equal(again.x[: clean_1000.n], chk.replicates[3].x)
+
+
+def test_a_round_weighs_with_the_covariance_pooled_over_the_replicates(clean_1000, kept):
+    chk, _ = kept
+    cands = ["quadratic_stiffness", "coloured_excitation"]
+    covs = null_covariances(chk.replicates, chk.model, cands, chk.theta_hat)
+    assert set(covs) == {"quadratic_stiffness"}  # the corner moves the coloured equations
+    # oracle: the replicates' null equations, their block values pooled
+    parts = [null_moments(r, chk.model, cands[0], chk.theta_hat) for r in chk.replicates]
+    U = [np.concatenate([m.influence for m in ms], axis=1) for ms in parts]
+    cov = covs["quadratic_stiffness"]
+    assert cov.dof == sum(len(u) - 1 for u in U) and cov.source == "8 simulated records"
+    np.testing.assert_allclose(cov.S, sum(u.T @ u for u in U) / cov.dof, rtol=1e-12)
+    rnd = weigh_round(
+        clean_1000, chk.model, cands, start=chk.theta_hat, alpha=0.05, family=2,
+        replicates=chk.replicates, starts=chk.draws,
+    )  # fmt: skip
+    assert rnd.evidence["quadratic_stiffness"].weight == "8 simulated records"
+    assert rnd.evidence["coloured_excitation"].weight == "the record's own blocks"
 
 
 def test_bad_arguments(clean_1000):

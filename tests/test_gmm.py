@@ -8,7 +8,13 @@ import pytest
 from scipy import stats
 
 from hosid.components.base import Moments
-from hosid.inference.gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
+from hosid.inference.gmm import (
+    BlockCovariance,
+    QuasiLikelihood,
+    hansen,
+    quasi_likelihood,
+    solve,
+)
 
 #: Equations m_b(theta) = y_b - A theta, y_b ~ N(A theta0, SIGMA): k = 4, p = 2.
 A = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, -2.0]])
@@ -38,6 +44,63 @@ def synthetic():
     y = _data(np.random.default_rng(2))
     parts = [_moments(y, [0, 1], "first"), _moments(y, [2, 3], "second")]
     return y, parts, quasi_likelihood(parts, n_params=2)
+
+
+def test_a_covariance_from_elsewhere_is_the_weight_with_its_own_wishart_factor(synthetic):
+    y, parts, _ = synthetic
+    B, k = y.shape
+    labels = tuple(lab for m in parts for lab in m.labels)
+    dof = 400  # e.g. ten simulated records of 41 blocks
+    cov = BlockCovariance(SIGMA, dof, labels, "ten records")
+    ql = quasi_likelihood(parts, n_params=2, covariance=cov)
+    factor = (dof - k - 1) / dof
+    assert ql.info["weight_factor"] == pytest.approx(factor, rel=1e-15)
+    assert ql.info["covariance_dof"] == dof and "ten records" in ql.info["weighting"]
+    W = factor * np.linalg.inv(SIGMA)
+    for theta in [THETA0, np.array([0.1, 0.4])]:
+        mbar = y.mean(axis=0) - A @ theta
+        assert ql(theta) == pytest.approx(-0.5 * B * mbar @ W @ mbar, rel=1e-12)
+    with pytest.raises(ValueError, match="other estimating equations"):
+        quasi_likelihood(parts[::-1], n_params=2, covariance=cov)
+
+
+def test_a_known_covariance_takes_the_weight_noise_out_of_the_ratio():
+    """D of one restriction over 4000 records of B = 10 Gaussian blocks, k = 4 equations,
+    p = 2.  With each record's own weight, Rao's test of additional information is the
+    exact oracle, (n - q) D' / (n + J') ~ F(1, n - q) (n = B - 1, q = k - p; primes: the
+    statistics without the Wishart factor), and D's tail is heavier than chi2(1); with the
+    true covariance D is chi2(1).  Tolerance: 3 binomial sd of a 1 % share (0.0047).
+    """
+    rng = np.random.default_rng(11)
+    n_rec, B, k, p = 4000, 10, 4, 2
+    labels = tuple(f"e {i}" for i in range(k))
+    cov = BlockCovariance(SIGMA, 10**7, labels)
+    own, rao, known = [], [], []
+    for _ in range(n_rec):
+        y = _data(rng, B)
+        parts = [Moments("e", labels, lambda th, y=y: y.mean(axis=0) - np.asarray(th) @ A.T,
+                         y - y.mean(axis=0))]  # fmt: skip
+        for c in (None, cov):
+            ql = quasi_likelihood(parts, n_params=p, covariance=c)
+            # linear equations: each J is a least-squares problem in the whitened residual
+            r0 = ql.residual(np.zeros(p))
+            G = np.stack([ql.residual(np.eye(p)[j]) - r0 for j in range(p)], axis=1)
+            J = np.sum((r0 - G @ np.linalg.lstsq(G, r0, rcond=None)[0]) ** 2)
+            rr = r0 + G[:, 1] * THETA0[1]  # theta_1 fixed at its true value
+            J0 = np.sum((rr - G[:, :1] @ np.linalg.lstsq(G[:, :1], rr, rcond=None)[0]) ** 2)
+            if c is None:
+                f = ql.info["weight_factor"]
+                n, q = B - 1, k - p
+                own.append(J0 - J)
+                rao.append((n - q) * (J0 - J) / f / (n + J / f))
+            else:
+                known.append(J0 - J)
+    tol = 3 * math.sqrt(0.01 * 0.99 / n_rec)
+    assert np.mean(np.array(known) > stats.chi2.isf(0.01, 1)) == pytest.approx(0.01, abs=tol)
+    assert np.mean(np.array(rao) > stats.f.isf(0.01, 1, B - 1 - (k - p))) == pytest.approx(
+        0.01, abs=tol
+    )
+    assert np.mean(np.array(own) > stats.chi2.isf(0.01, 1)) > 0.01 + tol
 
 
 def test_quasi_likelihood_is_the_exact_gaussian_form(synthetic):

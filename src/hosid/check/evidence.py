@@ -42,6 +42,22 @@ restoration and overstates the evidence; the ratio :math:`D` does not.  When
 Hansen's test of the free fit rejects (:data:`hosid.inference.calibrate.HANSEN_P`) both
 numbers are deflated by its dispersion :math:`J/(k - p)`, as the posterior is widened.
 
+**The weight.**  By default the equations' covariance is that of the record's own
+:math:`B` blocks (:func:`hosid.inference.gmm.quasi_likelihood`): 38 degrees of freedom
+for 11 equations in the ship-roll regime's 4000 s record, 96 in the paper's 2000 s.  Its
+noise (larger than a Wishart's: the block values of products of the response are far
+from Gaussian) makes :math:`D` a scale mixture whose far tail is heavier than
+:math:`\chi^2`'s, and a calibrated round (:mod:`hosid.check.selection`) pays for that
+tail in power.  With ``covariance`` (:func:`hosid.check.selection.null_covariances`)
+the weight is instead the covariance of the null equations pooled over records simulated
+from the model (a round of :func:`hosid.check.diagnose.diagnose` uses its R
+posterior-predictive replicates: :math:`R(B - 1)` degrees of freedom), as
+simulated-moment estimators do; the record and the replicates that calibrate it are
+weighed alike.  Under the null this weight is consistent whenever the model's
+simulations reproduce the record's block covariance; a record they do not describe
+shows in Hansen's test, which deflates both numbers (above).  The coloured force keeps
+the record's own weight (its equations move with the corner).
+
 Regular coordinates (:data:`COORDINATES`): a drift coefficient is its own coordinate,
 null 0 (two-sided; Coulomb friction :math:`\mu \ge 0` one-sided).  A white force is the
 low-pass with :math:`\omega_c = \infty`: the coordinate is :math:`u = 1/\omega_c \ge 0`,
@@ -74,68 +90,22 @@ from ..inference.estimate import (
     prepare_state,
     typical_scale,
 )
-from ..inference.gmm import Transformed, j_difference, quasi_likelihood, solve
+from ..inference.gmm import BlockCovariance, Transformed, j_difference, quasi_likelihood, solve
 from ..model.model import Model, get_term
 from ..record import Record
 from ..state import RecordState
+from .coordinates import COORDINATES, WHITE_CORNER, Coordinate, critical_z, param_sd
 
-__all__ = ["COORDINATES", "Coordinate", "Evidence", "critical_z", "screen", "weigh"]
-
-#: A corner this high is a white force on any sampled band (``u = 1/wc = 0``).
-WHITE_CORNER = 1e7
-
-
-@dataclass(frozen=True)
-class Coordinate:
-    """How the test sees a candidate's parameter: ``u`` regular at the null ``u = 0``."""
-
-    param: str
-    label: str
-    boundary: bool  #: the null lies on the boundary of the parameter space (u >= 0)
-    kind: str = "identity"  #: "identity", "inverse" (wc) or "square" (noise_sd)
-    rounds: int = 2  #: fewest rounds of :func:`weigh` (module docstring)
-
-    def to_param(self, u):
-        """The model's parameter at coordinate ``u``."""
-        u = np.asarray(u, dtype=float)
-        if self.kind == "inverse":
-            return 1.0 / np.maximum(u, 1.0 / WHITE_CORNER)
-        if self.kind == "square":
-            return np.sqrt(np.maximum(u, 0.0))
-        return u
-
-    def to_u(self, value: float) -> float:
-        """The coordinate of a parameter value."""
-        if self.kind == "inverse":
-            return 0.0 if not value < WHITE_CORNER else 1.0 / float(value)
-        if self.kind == "square":
-            return float(value) ** 2
-        return float(value)
-
-    def bounds(self, lower: float, upper: float) -> tuple[float, float]:
-        """The coordinate's range from the parameter's prior support (the null included)."""
-        if self.kind == "inverse":
-            return 0.0, 1.0 / lower
-        if self.kind == "square":
-            return 0.0, upper**2
-        return (0.0 if self.boundary else lower), upper
-
-
-#: The regular coordinate of every candidate effect (module docstring).
-COORDINATES: dict[str, Coordinate] = {
-    "quadratic_damping": Coordinate("n1", "n1", False),
-    "cubic_stiffness": Coordinate("n2", "n2", False),
-    "quadratic_stiffness": Coordinate("b2", "b2", False),
-    "coulomb_friction": Coordinate("mu", "mu", True),
-    "excitation_mean": Coordinate("m", "m", False),
-    "coloured_excitation": Coordinate("wc", "1/wc", True, "inverse", rounds=3),
-    "measurement_noise": Coordinate("noise_sd", "noise_sd^2", True, "square", rounds=1),
-}
-
-
-def critical_z(level: float, boundary: bool) -> float:
-    """The Wald threshold of a test at ``level``: one-sided at a boundary null."""
-    return float(stats.norm.isf(level if boundary else level / 2.0))
+__all__ = [  # the coordinates are re-exported: the evidence is where users look for them
+    "COORDINATES",
+    "WHITE_CORNER",
+    "Coordinate",
+    "Evidence",
+    "critical_z",
+    "null_moments",
+    "screen",
+    "weigh",
+]
 
 
 @dataclass
@@ -162,6 +132,7 @@ class Evidence:
     dispersion: float
     J_null: float
     seconds: float
+    weight: str = "the record's own blocks"  #: where the weight's covariance comes from
 
     @property
     def param(self) -> str:
@@ -188,6 +159,7 @@ class Evidence:
             "dispersion": self.dispersion,
             "J_null": self.J_null,
             "seconds": self.seconds,
+            "weight": self.weight,
         }
 
 
@@ -211,6 +183,26 @@ def _state(record, model, states) -> RecordState:
     return states[key]
 
 
+def null_moments(
+    record: Record, model: Model, effect: str, start: Mapping[str, float], states=None
+) -> list:
+    """The equations that weigh ``effect`` against ``model`` (:func:`components_for_test`),
+    prepared on ``record`` at ``start`` with the effect at its null: the first
+    preparation of :func:`weigh`.
+    """
+    ext = model.with_term(effect)
+    theta = _null_theta(ext, COORDINATES[effect], start)
+    state = _state(record, ext, states)
+    return [c.prepare(state, ext, theta) for c in components_for_test(model, effect)]
+
+
+def _null_theta(ext: Model, coord: Coordinate, start: Mapping[str, float]) -> np.ndarray:
+    """``start`` in the extended model's parameters, the effect at its null."""
+    null_value = float(coord.to_param(0.0))
+    return np.array([start.get(n, null_value) if n != coord.param else null_value
+                     for n in ext.param_names])  # fmt: skip
+
+
 def weigh(
     record: Record,
     model: Model | str,
@@ -219,6 +211,7 @@ def weigh(
     start: Mapping[str, float],
     rounds: int = 1,
     states: dict | None = None,
+    covariance: BlockCovariance | None = None,
 ) -> Evidence:
     """Fit ``model + effect`` and weigh the effect (module docstring).
 
@@ -239,6 +232,10 @@ def weigh(
         then redone with the last round's equations and weight (module docstring).
     states : dict, optional
         A cache of record states shared by the candidates of one record.
+    covariance : BlockCovariance, optional
+        The covariance of the null equations' block values estimated on the model's
+        simulated records (:func:`hosid.check.selection.null_covariances`); default: the
+        record's own blocks (module docstring).
 
     Raises
     ------
@@ -247,6 +244,7 @@ def weigh(
     """
     t0 = time.perf_counter()
     model = Model.from_spec(model)
+    states = {} if states is None else states
     effect = get_term(effect).name
     if effect not in COORDINATES:
         raise HosidInputError(f"{effect} is not a candidate effect")
@@ -268,8 +266,7 @@ def weigh(
         th[..., i] = coord.to_param(u[..., i])
         return th
 
-    null_value = float(coord.to_param(0.0))
-    theta = np.array([start.get(n, null_value) if n != coord.param else null_value for n in names])
+    theta = _null_theta(ext, coord, start)
     u = theta.copy()
     u[i] = 0.0
     free = [k for k in range(len(names)) if k != i]
@@ -289,7 +286,9 @@ def weigh(
     rounds = max(int(rounds), coord.rounds)
     try:
         ql = null = quasi_likelihood(
-            [c.prepare(state, ext, to_theta(u)) for c in comps], n_params=len(names)
+            null_moments(record, model, effect, start, states),
+            n_params=len(names),
+            covariance=covariance,
         )
         scale = typical_scale(ext, state, to_theta(u))
         scale[i] = max(abs(u[i]), 1e-3 * (upper[i] - lower[i]))
@@ -299,7 +298,9 @@ def weigh(
         for _ in range(rounds):
             if u[i] != 0.0:  # the equations and their weight at the current estimate
                 ql = quasi_likelihood(
-                    [c.prepare(state, ext, to_theta(u)) for c in comps], n_params=len(names)
+                    [c.prepare(state, ext, to_theta(u)) for c in comps],
+                    n_params=len(names),
+                    covariance=covariance,
                 )
             qlu = Transformed.of(ql, to_theta)
             u = solve(qlu, u, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
@@ -319,7 +320,7 @@ def weigh(
     test = j_difference(J0, J, boundary=coord.boundary, dispersion=disp)
     theta = to_theta(u)
     sd_theta = dict(zip(names, sd_u.tolist(), strict=True))
-    sd_theta[coord.param] = _param_sd(coord, float(u[i]), float(sd_u[i]))
+    sd_theta[coord.param] = param_sd(coord, float(u[i]), float(sd_u[i]))
     return Evidence(
         effect=effect,
         coordinate=coord,
@@ -335,18 +336,8 @@ def weigh(
         dispersion=disp,
         J_null=J0,
         seconds=time.perf_counter() - t0,
+        **({} if covariance is None else {"weight": covariance.source}),
     )
-
-
-def _param_sd(coord: Coordinate, u: float, sd_u: float) -> float:
-    """The parameter's sd by the delta method (infinite at a boundary estimate)."""
-    if coord.kind == "identity":
-        return sd_u
-    if u <= 0.0:
-        return math.inf
-    if coord.kind == "square":  # d sqrt(u) / du
-        return sd_u / (2.0 * math.sqrt(u))
-    return sd_u / u**2  # d (1/u) / du
 
 
 def screen(
@@ -355,12 +346,15 @@ def screen(
     candidates: Sequence[str],
     *,
     start: Mapping[str, float] | None = None,
+    covariances: Mapping[str, BlockCovariance] | None = None,
 ) -> tuple[dict[str, Evidence], dict[str, str]]:
     """:func:`weigh` every candidate against ``model`` (one record, shared states).
 
     ``start`` is ``model``'s estimate (default: :func:`hosid.inference.estimate.estimate`
-    of the record).  Returns the evidence by effect and the candidates that could not be
-    weighed, with why.
+    of the record); ``covariances`` the candidates' weights from simulated records
+    (:func:`hosid.check.selection.null_covariances`; the record's own otherwise).
+    Returns the evidence by effect and the candidates that could not be weighed, with
+    why.
 
     Raises
     ------
@@ -373,7 +367,8 @@ def screen(
     found, failed = {}, {}
     for c in candidates:
         try:
-            found[c] = weigh(record, model, c, start=start, states=states)
+            cov = (covariances or {}).get(c)
+            found[c] = weigh(record, model, c, start=start, states=states, covariance=cov)
         except HosidInputError as exc:
             failed[c] = str(exc)
     return found, failed

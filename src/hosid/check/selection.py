@@ -32,7 +32,10 @@ coordinate and the quasi-likelihood ratio :math:`D_c` with its asymptotic p-valu
    :func:`hosid.check.diagnose.diagnose` then fits it and lets its predictive gap veto it
    (the third number, :mod:`hosid.check.gaps`).
 
-Without replicates (a model whose simulations diverge) the round falls back to
+Every candidate is weighed with the covariance of its null equations pooled over the
+replicates' blocks (:func:`null_covariances`), the record and the replicates alike
+(:mod:`hosid.check.evidence`, *The weight*).  Without replicates (a model whose
+simulations diverge) the record's own weights are used and the round falls back to
 Bonferroni: :math:`p_c \le \alpha/m`.
 """
 
@@ -48,11 +51,12 @@ import numpy as np
 
 from ..errors import HosidInputError
 from ..inference.estimate import estimate
+from ..inference.gmm import BlockCovariance
 from ..model.model import Model
 from ..record import Record
-from .evidence import Evidence, critical_z, screen
+from .evidence import COORDINATES, Evidence, critical_z, null_moments, screen
 
-__all__ = ["Round", "null_min_p", "weigh_round"]
+__all__ = ["Round", "null_covariances", "null_min_p", "weigh_round"]
 
 
 @dataclass
@@ -143,6 +147,38 @@ class Round:
         }
 
 
+def null_covariances(
+    replicates: Sequence[Record],
+    model: Model,
+    candidates: Sequence[str],
+    start: Mapping[str, float],
+) -> dict[str, BlockCovariance]:
+    r"""The covariance of each candidate's null equations (:func:`null_moments` at
+    ``start``) pooled over the blocks of records simulated from ``model``:
+    :math:`\hat\Sigma = \sum_r U_r^{\mathsf T}U_r / \sum_r (B_r - 1)` with
+    :math:`\sum_r (B_r - 1)` degrees of freedom (:mod:`hosid.check.evidence`).  Not for a candidate
+    whose equations move with its own value (the coloured force's corner), nor from
+    fewer than two records.
+    """
+    states = [{} for _ in replicates]
+    out = {}
+    for c in candidates:
+        if COORDINATES[c].kind == "inverse":
+            continue
+        S, dof, labels, used = 0.0, 0, None, 0
+        for rep, st in zip(replicates, states, strict=True):
+            try:
+                moments = null_moments(rep, model, c, start, st)
+            except (HosidInputError, ValueError):
+                continue
+            U = np.concatenate([m.influence for m in moments], axis=1)
+            labels = tuple(lab for m in moments for lab in m.labels)
+            S, dof, used = S + U.T @ U, dof + U.shape[0] - 1, used + 1
+        if used >= 2:
+            out[c] = BlockCovariance(S / dof, dof, labels, f"{used} simulated records")
+    return out
+
+
 def null_min_p(
     replicates: Sequence[Record],
     model: Model,
@@ -150,18 +186,20 @@ def null_min_p(
     starts: np.ndarray | None = None,
     *,
     stop: tuple[float, int] | None = None,
+    covariances: Mapping[str, BlockCovariance] | None = None,
 ) -> np.ndarray:
     r""":math:`\min_c p_c` of the screening of each replicate record (module docstring);
     replicates the model cannot be estimated on are left out.  ``starts`` (``(R, p)``,
     the parameters each replicate was simulated at) replace the replicate's own estimate
     as the screening's start.  ``stop = (p, K)`` ends the loop as soon as more than
     ``K`` replicates reach :math:`\min_c p_c \le p` (the decision is then known).
+    ``covariances``: the weights the record was screened with (:func:`weigh_round`).
     """
     out = []
     for r, rep in enumerate(replicates):
         try:
             start = estimate(rep, model).values if starts is None else model.params(starts[r])
-            found, _ = screen(rep, model, candidates, start=start)
+            found, _ = screen(rep, model, candidates, start=start, covariances=covariances)
         except HosidInputError:
             continue
         if found:
@@ -186,14 +224,17 @@ def weigh_round(
     on the replicates (module docstring; ``starts`` as in :func:`null_min_p`).
     """
     t0 = time.perf_counter()
-    found, failed = screen(record, model, candidates, start=start)
+    covs = null_covariances(replicates, model, candidates, start) if replicates else {}
+    found, failed = screen(record, model, candidates, start=start, covariances=covs)
     rnd = Round(model, found, failed, float(alpha), int(family))
     best = min((ev.p_value for ev in found.values()), default=1.0)
     if found and replicates and best <= alpha:
         R = len(replicates)
         # the best candidate is supported only if at most K replicates are as extreme
         K = math.floor(alpha * (R + 1) - 1 + 1e-9)
-        rnd.null_min_p = null_min_p(replicates, model, list(found), starts, stop=(best, K))
+        rnd.null_min_p = null_min_p(
+            replicates, model, list(found), starts, stop=(best, K), covariances=covs
+        )
         rnd.replicates = R
         rnd.calibrated = rnd.null_min_p.size > 0
     rnd.seconds = time.perf_counter() - t0

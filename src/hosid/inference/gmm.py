@@ -37,7 +37,28 @@ from scipy import linalg, optimize, stats
 
 from ..components.base import Moments
 
-__all__ = ["QuasiLikelihood", "Transformed", "j_difference", "quasi_likelihood", "solve"]
+__all__ = [
+    "BlockCovariance",
+    "QuasiLikelihood",
+    "Transformed",
+    "j_difference",
+    "quasi_likelihood",
+    "solve",
+]
+
+
+@dataclass(frozen=True)
+class BlockCovariance:
+    r"""The covariance of one block's estimating equations, estimated elsewhere than on
+    the record they weigh: :math:`\hat\Sigma` with ``dof`` degrees of freedom (the
+    Wishart factor of the weight is then :math:`(\nu - k - 1)/\nu`), for the equations
+    ``labels``, and a note of where it comes from.
+    """
+
+    S: np.ndarray
+    dof: int
+    labels: tuple[str, ...]
+    source: str = "simulated records"
 
 
 @dataclass
@@ -142,20 +163,32 @@ def j_difference(
     return {"D": D, "p_value": p, "reference": ref, "df": int(df)}
 
 
-def quasi_likelihood(moments: Sequence[Moments], *, n_params: int) -> QuasiLikelihood:
-    """Stack ``moments`` and weight them with the inverse influence covariance.
+def quasi_likelihood(
+    moments: Sequence[Moments],
+    *,
+    n_params: int,
+    covariance: BlockCovariance | None = None,
+) -> QuasiLikelihood:
+    r"""Stack ``moments`` and weight them with the inverse influence covariance: the
+    record's own (:math:`\hat\Sigma` of its :math:`B` blocks) or, when given, a
+    ``covariance`` of the same equations estimated elsewhere (:class:`BlockCovariance`).
 
     Raises
     ------
     ValueError
-        If the blocks are too few for the number of equations (``B <= k + 2``) or the
-        covariance is singular.
+        If the blocks are too few for the number of equations (``B <= k + 2``), the
+        covariance is singular, or ``covariance`` holds other equations.
     """
     U = np.concatenate([m.influence for m in moments], axis=1)
     B, k = U.shape
     if B <= k + 2:
         raise ValueError(f"{B} blocks are too few for {k} estimating equations")
-    S = U.T @ U / (B - 1)
+    S, dof = U.T @ U / (B - 1), B - 1
+    if covariance is not None:
+        labels = tuple(lab for m in moments for lab in m.labels)
+        if covariance.labels != labels:
+            raise ValueError("the covariance is of other estimating equations")
+        S, dof = covariance.S, covariance.dof
     d = np.sqrt(np.diag(S))
     if not np.all(d > 0):
         bad = [lab for m in moments for lab in m.labels]
@@ -163,7 +196,7 @@ def quasi_likelihood(moments: Sequence[Moments], *, n_params: int) -> QuasiLikel
             "an estimating equation has no variance: "
             + ", ".join(b for b, di in zip(bad, d, strict=True) if not di > 0)
         )
-    factor = (B - k - 2) / (B - 1)
+    factor = (dof - k - 1) / dof
     C = S / np.outer(d, d)
     try:
         Lc = linalg.cholesky(C / factor, lower=True)
@@ -178,7 +211,9 @@ def quasi_likelihood(moments: Sequence[Moments], *, n_params: int) -> QuasiLikel
         float(np.corrcoef(U[:-1, i], U[1:, i])[0, 1]) if B > 3 else float("nan") for i in range(k)
     ]
     info = {
-        "weighting": "efficient GMM (inverse jackknife covariance, Godambe curvature)",
+        "weighting": "efficient GMM (inverse jackknife covariance, Godambe curvature)"
+        + ("" if covariance is None else f"; covariance of {covariance.source}"),
+        "covariance_dof": int(dof),
         "blocks": B,
         "equations": k,
         "parameters": n_params,
