@@ -8,7 +8,6 @@ import pytest
 
 from hosid.components import J2, Identities, Moments
 from hosid.components.base import u_pseudovalues
-from hosid.components.noise import NoiseFloor
 from hosid.components.polyspectral import J4, null_variance
 from hosid.model import PAPER_PARAMS, Model, simulate_ensemble
 from hosid.spectra import BlockLayout, block_fft, get_window
@@ -99,16 +98,6 @@ def test_component_info(prepared):
     lo, hi = prepared["J2"].info["band_rad_s"]
     assert lo == pytest.approx(2 * 2 * math.pi / 20.48)  # bin 2: Hann leaks a mean into 0, 1
     assert hi <= 6 * 7.3 / 1.14  # 6 w_n
-
-
-def test_noise_floor_component(paper_record):
-    model = Model.from_spec("paper,measurement_noise")
-    state = RecordState.from_record(paper_record, denoise=True)
-    theta = model.vector({**PAPER_PARAMS, "noise_sd": 0.005})
-    m = NoiseFloor().prepare(state, model, theta)
-    assert m.labels == ("noise d/dnoise_sd",)
-    assert m.influence.shape == (97, 1)
-    assert m.mean(np.stack([theta, theta])).shape == (2, 1)
 
 
 def test_bad_component_settings(paper_state):

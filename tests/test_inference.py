@@ -108,7 +108,7 @@ def test_extended_models_run_and_find_no_effect(paper_record, spec, extra, names
         # no noise was added: the estimate sits at the boundary (measured -3.4e-8, with a
         # meaningless curvature sd of 82: the floor enters as noise_sd^2)
         assert abs(est.values["noise_sd"]) < 0.01
-        assert est.state.noise is not None and "noise" in est.ql.slices
+        assert est.state.noise is not None and "tail" in est.ql.slices
     if extra == "m":
         assert not est.state.centred  # the offset informs the mean force
 

@@ -160,7 +160,7 @@ def test_the_discrepancy_measures_fit_the_circuit(sb):
 
     spec = MeasureSpec.from_record(sb.record)
     assert spec.omega_n == pytest.approx(433.0, rel=0.02)  # sigma_v / sigma_x
-    assert spec.tail_edges == ()  # 0.8 x the edge (1184 rad/s) < 4 omega_n
+    assert spec.tail_band == ()  # 0.8 x the edge (1184 rad/s) < 4 omega_n
     m = measures(sb.record, spec=spec)
     assert "psd_tail" not in m and all(np.all(np.isfinite(v)) for v in m.values())
 

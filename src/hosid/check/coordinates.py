@@ -13,7 +13,7 @@ from scipy import stats
 
 __all__ = ["COORDINATES", "WHITE_CORNER", "Coordinate", "critical_z", "param_sd"]
 
-#: A corner this high is a white force on any sampled band (``u = 1/wc = 0``).
+#: A corner this high is a white force on any sampled band (``u = 1/wc^2 = 0``).
 WHITE_CORNER = 1e7
 
 
@@ -24,30 +24,30 @@ class Coordinate:
     param: str
     label: str
     boundary: bool  #: the null lies on the boundary of the parameter space (u >= 0)
-    kind: str = "identity"  #: "identity", "inverse" (wc) or "square" (noise_sd)
+    kind: str = "identity"  #: "identity", "inverse_square" (wc) or "square" (noise_sd)
     rounds: int = 2  #: fewest rounds of :func:`weigh` (module docstring)
 
     def to_param(self, u):
         """The model's parameter at coordinate ``u``."""
         u = np.asarray(u, dtype=float)
-        if self.kind == "inverse":
-            return 1.0 / np.maximum(u, 1.0 / WHITE_CORNER)
+        if self.kind == "inverse_square":
+            return 1.0 / np.sqrt(np.maximum(u, WHITE_CORNER**-2.0))
         if self.kind == "square":
             return np.sqrt(np.maximum(u, 0.0))
         return u
 
     def to_u(self, value: float) -> float:
         """The coordinate of a parameter value."""
-        if self.kind == "inverse":
-            return 0.0 if not value < WHITE_CORNER else 1.0 / float(value)
+        if self.kind == "inverse_square":
+            return 0.0 if not value < WHITE_CORNER else float(value) ** -2.0
         if self.kind == "square":
             return float(value) ** 2
         return float(value)
 
     def bounds(self, lower: float, upper: float) -> tuple[float, float]:
         """The coordinate's range from the parameter's prior support (the null included)."""
-        if self.kind == "inverse":
-            return 0.0, 1.0 / lower
+        if self.kind == "inverse_square":
+            return 0.0, lower**-2.0
         if self.kind == "square":
             return 0.0, upper**2
         return (0.0 if self.boundary else lower), upper
@@ -60,7 +60,7 @@ COORDINATES: dict[str, Coordinate] = {
     "quadratic_stiffness": Coordinate("b2", "b2", False),
     "coulomb_friction": Coordinate("mu", "mu", True),
     "excitation_mean": Coordinate("m", "m", False),
-    "coloured_excitation": Coordinate("wc", "1/wc", True, "inverse", rounds=3),
+    "coloured_excitation": Coordinate("wc", "1/wc^2", True, "inverse_square", rounds=3),
     "measurement_noise": Coordinate("noise_sd", "noise_sd^2", True, "square", rounds=1),
 }
 
@@ -78,4 +78,4 @@ def param_sd(coord: Coordinate, u: float, sd_u: float) -> float:
         return math.inf
     if coord.kind == "square":  # d sqrt(u) / du
         return sd_u / (2.0 * math.sqrt(u))
-    return sd_u / u**2  # d (1/u) / du
+    return sd_u / (2.0 * u**1.5)  # d u^(-1/2) / du

@@ -8,12 +8,12 @@ replicate records simulated from the fitted model:
 - ``psd``: :math:`\log \bar S_x` in bands from the first bin to :math:`2\omega_n`
   (Hann blocks, mean removed); moved by the stiffness, the damping law and a
   coloured excitation.
-- ``psd_tail``: the shape of the spectral tail, the steps
-  :math:`\log \bar S_x(B_{j+1}) - \log \bar S_x(B_j)` between log-spaced bands from
-  :math:`2.5\omega_n` to :math:`0.8\,\omega_N` (about :math:`-4\log r` for bands in
-  the ratio :math:`r` and the :math:`S_0/\omega^4` tail of a white-noise-driven
-  oscillator); measurement noise (a floor) and coloured excitation (a steeper fall).
-  Its level, set by :math:`S_0` and measured to a fraction of a percent, is left out.
+- ``psd_tail``: the spectral tail's shape from :math:`4\omega_n` to :math:`\omega_N`,
+  as the level-free scores of a corner and of a noise floor
+  (:func:`hosid.spectra.tail.tail_scores`; weights fixed by the spec from the record's
+  equivalent linear tail, :math:`k = s_{\dot x}^2/s_x^2`, :math:`c = \pi A/s_{\dot x}^2`,
+  :math:`A` the force level of its response spectrum): coloured excitation (a steeper
+  fall) and measurement noise (a floor), where both show most.
 - ``pdf_x``: quantiles of :math:`(x - \bar x)/s_x` (levels :data:`X_LEVELS`);
   cubic and quadratic stiffness.
 - ``pdf_v``: quantiles of :math:`|\dot x|/s_{\dot x}` (levels :data:`V_LEVELS`); the
@@ -73,6 +73,7 @@ from ..errors import HosidInputError
 from ..record import Record
 from ..spectra.blocks import block_fft, blocks_in, choose_layout
 from ..spectra.response import response_spectrum
+from ..spectra.tail import LOW, MIN_BINS, tail_bins, tail_scores
 from ..spectra.windows import get_window
 from ..state import derivatives
 from .gaps import compare_layout, gaps
@@ -125,8 +126,12 @@ class MeasureSpec:
         Equivalent natural frequency :math:`\sigma_{\dot x}/\sigma_x` of the record (rad/s).
     block : int
         Samples per Hann-windowed block of the spectral measures.
-    psd_edges, tail_edges, force_edges : tuple of float
-        Band edges (rad/s) of ``psd``, ``psd_tail`` and ``force_psd``.
+    psd_edges, force_edges : tuple of float
+        Band edges (rad/s) of ``psd`` and ``force_psd``.
+    tail_band : tuple of float
+        ``(lo, hi)`` (rad/s) of ``psd_tail``, or ``()`` when the tail holds too few bins.
+    tail_shape : tuple of float
+        ``(c, k)`` of the equivalent linear tail the weights of ``psd_tail`` are built on.
     force_cutoff : float
         Low-pass corner (rad/s) of the force for ``force_moments``.
     bispec_edges : tuple of float
@@ -141,7 +146,8 @@ class MeasureSpec:
     omega_n: float
     block: int
     psd_edges: tuple[float, ...]
-    tail_edges: tuple[float, ...]
+    tail_band: tuple[float, ...]
+    tail_shape: tuple[float, float]
     force_edges: tuple[float, ...]
     force_cutoff: float
     bispec_edges: tuple[float, float, float, float]
@@ -207,18 +213,21 @@ class MeasureSpec:
                 f"natural frequency {wn:.3g} rad/s is outside [{4 * dw:.3g}, {0.4 * wN:.3g}] "
                 f"rad/s: use longer blocks or a finer sampling"
             )
-        # the tail's shape up to the excitation's edge when it stops below Nyquist
-        # (nothing of the model's tail lies beyond it); none when no octave is left
-        edge = response_spectrum(x, dt, sigma_v=float(np.std(v)), bounds=record.bounds).edge
-        top = 0.8 * (min(wN, edge[0]) if edge else wN)
-        tail = np.geomspace(2.5 * wn, top, 5) if top >= 4.0 * wn else ()
+        # the tail up to the Nyquist frequency, where a corner and a noise floor show
+        # most (hosid.spectra.tail), or to 0.8 of the excitation's edge when it stops
+        # below it (nothing of the model's tail lies beyond); none when too few bins
+        resp = response_spectrum(x, dt, sigma_v=float(np.std(v)), bounds=record.bounds)
+        top, sv2 = (0.8 * resp.edge[0] if resp.edge else wN), float(np.var(v))
+        _, tail_omega = tail_bins(M - 2, dt, LOW * wn, top)
+        tail = (float(tail_omega[0]), float(top)) if tail_omega.size >= MIN_BINS else ()
         psd_edges = (0.5 * dw, *np.linspace(0.25 * wn, 2.0 * wn, 8))
         spec = cls(
             dt=dt,
             omega_n=wn,
             block=M,
             psd_edges=tuple(float(e) for e in psd_edges),
-            tail_edges=tuple(float(e) for e in tail),
+            tail_band=tail,
+            tail_shape=(math.pi * max(resp.level, 1e-300) / sv2, sv2 / float(np.var(x))),
             force_edges=tuple(
                 float(e) for e in np.geomspace(0.25 * wn, min(4.0 * wn, 0.8 * wN), 7)
             ),
@@ -226,7 +235,7 @@ class MeasureSpec:
             bispec_edges=(0.0, 0.5 * wn, 1.5 * wn, min(3.0 * wn, wN)),
             trim=max(1, min(round(1.0 / dt), min(b - a for a, b in record.bounds) // 8)),
         )
-        for edges in (spec.psd_edges, spec.tail_edges or (0.0, wN), spec.force_edges):
+        for edges in (spec.psd_edges, spec.force_edges):
             counts = np.histogram(spec.omega, bins=np.asarray(edges))[0]
             if np.any(counts == 0):
                 raise HosidInputError(
@@ -318,8 +327,9 @@ def measures(
     xs, vs = pooled(segs), pooled([d[0] for d in deriv])
     P = _psd(xc, spec, record.bounds)
     out: dict[str, np.ndarray] = {"psd": _band_log(P, spec.psd_edges, spec)}
-    if spec.tail_edges:
-        out["psd_tail"] = np.diff(_band_log(P, spec.tail_edges, spec))
+    if spec.tail_band:
+        blocks = blocks_in(record.bounds, spec.block, spec.dt).take(xc)
+        out["psd_tail"] = tail_scores(blocks, spec.dt, spec.tail_band, spec.tail_shape)
     out["pdf_x"] = np.quantile(xs / xs.std(), X_LEVELS)
     out["pdf_v"] = np.quantile(np.abs(vs) / vs.std(), V_LEVELS)
     if fn is None:
@@ -336,12 +346,7 @@ def measures(
         list(zip(segs, bodies, strict=True)), spec.dt, spec.bispec_edges
     )
     if fn is not None:
-        f = np.concatenate(
-            [
-                a + np.asarray(fn(p + mean_x, v), dtype=float)
-                for p, (v, a) in zip(segs, deriv, strict=True)
-            ]
-        )
+        f = np.concatenate([a + fn(p + mean_x, v) for p, (v, a) in zip(segs, deriv, strict=True)])
         f = f - f.mean()
         logs = _band_log(_psd(f, spec, record.bounds), spec.force_edges, spec)
         out["force_psd"] = logs - logs.mean()
@@ -361,10 +366,11 @@ def component_labels(name: str, size: int) -> list[str]:
         "mean": ["mean x"],
         "bispectrum": ["LRR", "LLR", "HRR", "HHR"],
         "force_moments": ["skew", "kurt"],
+        "psd_tail": ["corner", "floor"],
     }.get(name)
     if fixed is not None and len(fixed) == size:
         return fixed
-    return [f"band {i}" if name.endswith(("psd", "tail")) else str(i) for i in range(size)]
+    return [f"band {i}" if name.endswith("psd") else str(i) for i in range(size)]
 
 
 def compare(

@@ -23,7 +23,7 @@ Where the Gaussian is right the weights are nearly flat and the draws are those 
 it is not: a parameter at the boundary of its prior (``noise_sd`` on a noise-free
 record, whose estimating equation depends on :math:`\sigma_\epsilon^2` and leaves the
 curvature singular at 0; ``mu`` near 0) or an estimate outside the prior (``wc``
-beyond :math:`2\omega_N`, or run off to :math:`10^{10}` on a white record).
+beyond its prior, or run off to :math:`10^{10}` on a white record).
 Evaluating :math:`\ell_{cal}` costs microseconds a draw.
 """
 

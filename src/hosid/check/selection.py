@@ -163,7 +163,7 @@ def null_covariances(
     states = [{} for _ in replicates]
     out = {}
     for c in candidates:
-        if COORDINATES[c].kind == "inverse":
+        if COORDINATES[c].kind == "inverse_square":
             continue
         S, dof, labels, used = 0.0, 0, None, 0
         for rep, st in zip(replicates, states, strict=True):

@@ -3,8 +3,8 @@
 from .base import Component, Moments
 from .bispectral import J3
 from .identities import Identities
-from .noise import NoiseFloor
 from .polyspectral import J4
 from .spectral import J2
+from .tail import Tail
 
-__all__ = ["J2", "J3", "J4", "Component", "Identities", "Moments", "NoiseFloor"]
+__all__ = ["J2", "J3", "J4", "Component", "Identities", "Moments", "Tail"]

@@ -42,8 +42,8 @@ import numpy as np
 
 from ..components.base import Component, restoration
 from ..components.identities import Identities
-from ..components.noise import NoiseFloor
 from ..components.spectral import J2
+from ..components.tail import TAIL_PARAMS, Tail
 from ..errors import HosidInputError
 from ..model.model import Model
 from ..model.priors import LogUniform, PriorSet
@@ -223,8 +223,8 @@ def estimate(
     )
     model, notes = excitation_for(state, model, band_limit=band_limit and start is None)
     components = list(components or components_for())
-    if model.has("noise_sd") and not any(isinstance(c, NoiseFloor) for c in components):
-        components.append(NoiseFloor())
+    if any(model.has(p) for p in TAIL_PARAMS) and not any(isinstance(c, Tail) for c in components):
+        components.append(Tail())  # the corner and the noise floor show in the tail
     theta0 = pilot_estimate(state, model) if start is None else np.array(start, dtype=float)
     theta = theta0.copy()
     logs = log_params(model)

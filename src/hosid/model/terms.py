@@ -295,7 +295,7 @@ class ExcitationLevel(Term):
 class ColouredExcitation(Term):
     r"""The white force through a first-order low-pass,
     :math:`S_g = S_0\,\omega_c^2/(\omega_c^2+\omega^2)`;
-    :math:`\omega_c \sim \log U(\omega_n/10, 2\omega_N)` (up to :math:`30\,\omega_b` under a
+    :math:`\omega_c \sim \log U(\omega_n/10, 100\,\omega_N)` (up to :math:`30\,\omega_b` under a
     band-limited excitation).
     """
 
@@ -312,10 +312,13 @@ class ColouredExcitation(Term):
         return wc**2 / (wc**2 + omega**2)
 
     def default_priors(self, scales):
-        """``logU(w_n / 10, 2 pi / dt)``; up to 30 times the edge of a band-limited
-        excitation (whose flat band is a corner far above the edge).
+        r"""``logU(w_n / 10, 100 w_N)``; up to 30 times the edge of a band-limited
+        excitation (whose flat band is a corner far above the edge).  A corner far above
+        the Nyquist frequency :math:`\omega_N` still shows in the sampled spectrum's top,
+        by :math:`\omega_N^2/\omega_c^2` (:mod:`hosid.components.tail`); at
+        :math:`100\omega_N` the force is white on any sampled band.
         """
-        top = 2.0 * scales.omega_nyquist
+        top = 100.0 * scales.omega_nyquist
         if scales.band_edge is not None:
             top = max(top, 30.0 * scales.band_edge[1])
         return {"wc": LogUniform(scales.omega_n / 10.0, top)}
