@@ -151,6 +151,12 @@ def test_round_adjusts_by_the_replicates_smallest_p_values():
     assert rnd.adjusted("b") == pytest.approx(2 / 20)
     assert rnd.adjusted("c") == pytest.approx(4 / 20)
     assert rnd.supported() == ["a"] and rnd.best() == "a" and not rnd.stopped
+    # calibrated: the Wald z needs level alpha only (two-sided 1.96), not alpha / m
+    rnd.evidence["a"] = _ev("a", 2.2, 1e-4)
+    assert rnd.wald_level == 0.05 and rnd.wald_ok("a") and rnd.supported() == ["a"]
+    rnd.evidence["a"] = _ev("a", 1.9, 1e-4)
+    assert not rnd.wald_ok("a") and rnd.supported() == []
+    rnd.evidence["a"] = _ev("a", 4.0, 1e-4)
     d = rnd.as_dict()
     # not calibrated: Bonferroni
     plain = Round(Model.from_spec("paper"), dict(ev), {}, 0.05, 5)

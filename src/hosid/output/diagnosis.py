@@ -170,7 +170,7 @@ def measures_figure(diag: Diagnosis, names: Sequence[str] | None = None) -> Figu
 def evidence_figure(diag: Diagnosis) -> Figure:
     r"""Every round's evidence: the Wald :math:`|z|` and :math:`-\log_{10}` of the
     calibrated and asymptotic p-values of each candidate, the decision's thresholds
-    (Bonferroni's Wald threshold, alpha) dashed.
+    (the Wald threshold of the round's level, alpha) dashed.
     """
     rounds = diag.rounds or []
     n = max(1, len(rounds))
