@@ -83,10 +83,16 @@ def test_excitation_shape_powers_and_restoration():
             up[i] += h
             num = (np.log(exc.shape(omega[:3], up)) - np.log(Lt[:3])) / h
             np.testing.assert_allclose(d, num, rtol=1e-5, atol=1e-9)
-    rho, _ = exc.powers(theta)
+    rho, _ = exc.powers(theta, dt=0.02)
     c, k = exc.linear
     corners = (np.full(2, 20.0), theta[:, 6] / np.sqrt(np.maximum(theta[:, 7], 1e-6)))
-    np.testing.assert_allclose(rho, input_power(c, k, corners=corners, wb=theta[:, 6])[0])
+    wN = math.pi / 0.02
+    # edge 30 below the Nyquist frequency: the shape as it is; edge 200 above it: the shape
+    # up to wN, then white at L(wN) up to the edge (the force as the sampled record sees it)
+    inside = input_power(c, k, corners=corners, wb=np.minimum(theta[:, 6], wN))[0]
+    top = exc.lowpass(np.asarray(wN), theta)
+    white_above = input_power(c, k, wb=theta[:, 6])[0] - input_power(c, k, wb=wN)[0]
+    np.testing.assert_allclose(rho, inside + np.where(theta[:, 6] > wN, top * white_above, 0.0))
     # a flat band is the limit of a vanishing roll-off (computed at ROLLOFF_FLOOR = 1e-6)
     flat = input_power(c, k, corners=(20.0,), wb=30.0)[0]
     assert rho[0] == pytest.approx(flat, rel=1e-6)  # the floor 1e-6 of the roll-off
@@ -94,7 +100,28 @@ def test_excitation_shape_powers_and_restoration():
     assert exc.deficit(theta[0], dt=0.02) == 0.0
     assert velocity_deficit(100.0, 0.02, lambda w: (np.abs(w) <= 30.0) * 1.0) == 0.0
     white = Excitation(Model.from_spec("paper"), theta[0, :5], 7.0, 1.2)
-    assert white.white and white.powers(theta[:, :5])[0].tolist() == [1.0, 1.0]
+    assert white.white and white.powers(theta[:, :5], 0.02)[0].tolist() == [1.0, 1.0]
+
+
+def test_a_corner_above_the_band_moves_what_the_identities_see_by_its_square():
+    """A corner far above the Nyquist frequency changes the sampled record by
+    O(1/wc^2): so do the input power and the restoration the identities use (the
+    continuous input power moves by -c/wc, the order the record cannot see).
+    """
+    model = Model.from_spec("paper,coloured_excitation")
+    dt, wN = 0.02, math.pi / 0.02
+    th = np.array([[0.5, 0.5, 25.0, 5.0, 100.0, wc] for wc in (4 * wN, 8 * wN)])
+    exc = Excitation(model, th[0], sigma_v=7.0, sigma_x=1.2)
+    rho, _ = exc.powers(th, dt)
+    assert (1 - rho[1]) / (1 - rho[0]) == pytest.approx(0.25, rel=0.05)
+    continuous = input_power(*exc.linear, corners=(th[:, 5],))[0]
+    assert (1 - continuous[1]) / (1 - continuous[0]) == pytest.approx(0.5, rel=0.05)
+    # above the band the force is white at L(wN) (against the same numeric alias sum:
+    # truncated at 60 aliases it is 1 % below the closed form pi^2 S0 / 6 wN)
+    white = velocity_deficit(100.0, dt, np.ones_like)
+    for t in th:
+        top = 1.0 / (1.0 + (wN / t[5]) ** 2)
+        assert exc.deficit(t, dt) == pytest.approx(top * white, rel=1e-3)
 
 
 # ------------------------------------------------------------------ simulator

@@ -295,6 +295,7 @@ def weigh(
         scale = typical_scale(ext, state, to_theta(u))
         scale[i] = max(abs(u[i]), 1e-3 * (upper[i] - lower[i]))
         J0, u[free] = null_fit(null, u[free])
+        scale[i] = _own_sd(Transformed.of(null, to_theta), u, i, scale[i])
         if coord.kind == "inverse_square":  # start coloured, as the fit does
             u[i] = support[coord.param].upper ** -2.0
         for _ in range(rounds):
@@ -340,6 +341,22 @@ def weigh(
         seconds=time.perf_counter() - t0,
         **({} if covariance is None else {"weight": covariance.source}),
     )
+
+
+def _own_sd(q: Transformed, u: np.ndarray, i: int, fallback: float) -> float:
+    r"""The coordinate's sd from the null equations alone, :math:`1/\|\partial r/\partial
+    u_i\|` (a forward difference from the null): the solver's scale.  A prior's width
+    is no scale for a corner, whose information lives within :math:`10^{-6}` of a
+    coordinate that ranges over :math:`1/\omega_{c,\min}^2`: scaled by the width, the
+    free fit of a corner at 5 sd stayed at the null (``fallback`` when the equations do
+    not move).
+    """
+    h = 1e-6 * fallback
+    step = np.zeros_like(u)
+    step[i] = h
+    with np.errstate(all="ignore"):
+        g = float(np.linalg.norm((q.residual(u + step) - q.residual(u)) / h))
+    return min(fallback, 1.0 / g) if math.isfinite(g) and g > 0 else fallback
 
 
 def screen(

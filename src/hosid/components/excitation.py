@@ -18,6 +18,20 @@ jointly Gaussian velocity, displacement and force (Stein's lemma),
 with :math:`E[\dot xg] = \pi S_0\rho` and :math:`E[xg] = \pi S_0\rho_x` the input-power
 integrals (:func:`input_power`) of the equivalent linear system
 :math:`H = 1/(k - \omega^2 + ic\omega)` at the pilot.
+
+**As the sampled record sees it.**  The identities use the velocity in the band, restored
+for the power above the Nyquist frequency :math:`\omega_N` by the model
+(:func:`hosid.state.velocity_deficit`); the record resolves nothing of the force's shape up
+there.  Both the input power and the restoration therefore take the force's low-pass
+factors at :math:`\min(|\omega|, \omega_N)`: above the band the force is white at the
+level :math:`L(\omega_N)`.  A corner far above the band then moves them by
+:math:`O(1/\omega_c^2)`, as it moves the sampled record; with the continuous shape the
+input power moved by :math:`-E[\partial g/\partial\dot x]/\omega_c` and the restoration
+by :math:`-\pi S_0/\omega_c`, which cancel for linear damping only (for :math:`n_1\dot
+x|\dot x|` the restored identities moved by :math:`a_1 + 3n_1E|\dot x|` against
+:math:`a_1 + 2n_1E|\dot x|`), and the identities pulled a corner at 5 Cramer-Rao sd back
+to white.  For a corner within the band the two shapes differ by :math:`L(\omega_N)
+\approx \omega_c^2/\omega_N^2`.  A band-limited force's edge is kept as it is.
 """
 
 from __future__ import annotations
@@ -133,23 +147,54 @@ class Excitation:
             out.append((self.i_rb, -(w2 / wb**2) / (1.0 + beta * w2 / wb**2)))
         return out
 
-    def powers(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def powers(self, theta: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         r"""The input-power ratios :math:`\rho = E[\dot xg]/\pi S_0` (1 for white noise)
-        and :math:`\rho_x = E[xg]/\pi S_0` (0 for white noise) for each ``theta``.
+        and :math:`\rho_x = E[xg]/\pi S_0` (0 for white noise) for each ``theta``, of the
+        force as a record sampled at ``dt`` sees it (module docstring): its shape in the
+        band and, up to the edge if any, white at :math:`L(\omega_N)` above it.
         """
         th = np.asarray(theta, dtype=float)
         if self.white:
             return np.ones(th.shape[:-1]), np.zeros(th.shape[:-1])
-        wb = None if self.i_wb is None else th[..., self.i_wb]
-        return input_power(*self.linear, corners=self._corners(th), wb=wb)
+        wN = math.pi / dt
+        wb = np.inf if self.i_wb is None else th[..., self.i_wb]
+        inside = input_power(*self.linear, corners=self._corners(th), wb=np.minimum(wb, wN))
+        level = self.lowpass(np.asarray(wN), th)  # the shape's top, held above the band
+        full = input_power(*self.linear, wb=None if self.i_wb is None else wb)
+        band = input_power(*self.linear, wb=wN)
+        above = np.asarray(wb) > wN
+        return tuple(
+            r_in + np.where(above, level * (r_all - r_band), 0.0)
+            for r_in, r_all, r_band in zip(inside, full, band, strict=True)
+        )
+
+    def lowpass(self, omega: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """The low-pass factors of :math:`L` (its shape without the band's edge)."""
+        omega = np.asarray(omega, dtype=float)
+        th = np.asarray(theta, dtype=float)
+        new = (...,) + (None,) * omega.ndim
+        out = np.ones(th.shape[:-1] + omega.shape)
+        for _, a in self.inverse_factors():
+            out = out / (1.0 + omega**2 * a(th)[new])
+        return out
 
     def deficit(self, theta: np.ndarray, dt: float) -> float:
-        """The velocity restoration :math:`s^2` at one ``theta`` (:mod:`hosid.state`)."""
+        """The velocity restoration :math:`s^2` at one ``theta`` (:mod:`hosid.state`), of
+        the force as the sampled record sees it (module docstring).
+        """
         S0 = float(self.S0(theta))
         if self.white:
             return float(velocity_deficit(S0, dt))
         th = np.asarray(theta, dtype=float)
-        return float(velocity_deficit(S0, dt, lambda w: self.shape(w, th)))
+        wN = math.pi / dt
+
+        edge = np.inf if self.i_wb is None else float(th[self.i_wb])
+
+        def seen(w):
+            w = np.asarray(w, dtype=float)
+            return self.lowpass(np.clip(w, -wN, wN), th) * (np.abs(w) <= edge)
+
+        return float(velocity_deficit(S0, dt, seen))
 
 
 def input_power(c, k, *, corners: Sequence = (), wb=None) -> tuple[np.ndarray, np.ndarray]:

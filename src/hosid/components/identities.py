@@ -128,13 +128,13 @@ class Identities:
         def mean(theta):
             th = np.asarray(theta, dtype=float)
             D = (np.pi * exc.S0(th))[..., None]
-            rho, rho_x = exc.powers(th)
+            rho, rho_x = exc.powers(th, state.dt)
             force = D * (rho[..., None] * em + rho_x[..., None] * exm)
             return cm + th[..., :nd] @ Qm.T - force
 
         th0 = np.asarray(pilot, dtype=float)
         D0 = np.pi * float(exc.S0(th0))
-        rho0, rho_x0 = (float(r) for r in exc.powers(th0))
+        rho0, rho_x0 = (float(r) for r in exc.powers(th0, state.dt))
         force0 = D0 * (rho0 * e + rho_x0 * ex)
         per_block = const + np.einsum("bjk,k->bj", Q, th0[:nd]) - force0
         labels = tuple(f"identity {terms[j].params[0]}" for j in rows)

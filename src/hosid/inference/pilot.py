@@ -61,7 +61,7 @@ def pilot(state: RecordState, model: Model, theta: np.ndarray | None = None) -> 
     for _ in range(2):
         Q, const, e, ex, _, s2 = Identities().statistics(state, model, theta)
         exc = Excitation(model, theta, state.scales.sigma_v, state.scales.sigma_x)
-        rho, rho_x = (float(r) for r in exc.powers(theta))
+        rho, rho_x = (float(r) for r in exc.powers(theta, state.dt))
         try:
             alpha = np.linalg.solve(Q.mean(0), -const.mean(0))
             beta = np.linalg.solve(Q.mean(0), rho * e.mean(0) + rho_x * ex.mean(0))
