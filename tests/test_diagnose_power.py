@@ -43,8 +43,10 @@ def test_design_and_truth(power):
     bounds[("paper_S100", "paper", "measurement_noise")] = 1e-6
     t = power.truth(two, bounds)  # two effects: each at 5 times its bound given the other
     assert t["b2"] == pytest.approx(0.1) and t["mu"] == pytest.approx(0.01)
-    wc = power.truth(cells["coloured_excitation:100@paper_S100/paper"], bounds)["wc"]
-    assert wc == pytest.approx(1 / np.sqrt(100 * 4e-6))
+    wc = power.truth(cells["coloured_excitation:10@paper_S100/paper"], bounds)["wc"]
+    assert wc == pytest.approx(1 / np.sqrt(10 * 4e-6))
+    assert cells["measurement_noise:5@paper_S1000/paper"]["records"] == 10
+    assert "quadratic_damping:1@paper_S100/linear" in cells
     noise = power.truth(cells["measurement_noise:3@paper_S100/paper"], bounds)["noise_sd"]
     assert noise == pytest.approx(np.sqrt(3e-6))
     linear = power.truth(cells["cubic_stiffness:5@paper_S100/linear"], {

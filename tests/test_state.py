@@ -138,6 +138,26 @@ def test_noise_floor_of_a_clean_record_is_small(paper_record):
     assert info["A"] == pytest.approx(PAPER_PARAMS["S0"], rel=0.1)  # the tail S0 / w^4
 
 
+def test_a_denoised_state_keeps_the_record_s_own_landmarks():
+    """Wiener filtering a noisy record makes its acceleration fall above the noise's edge
+    as if the force stopped there: the state's landmarks (edge, floor) are the record's
+    as measured, and the filter's noise is the record's.  A ship-roll record (white
+    force, noise at 5 Cramer-Rao sd) once got a band-limited force at 15.9 rad/s in the
+    fit of paper + noise, and no noise.
+    """
+    from hosid.inference.estimate import estimate
+
+    p = {"a1": 0.03, "n1": 0.15, "a2": 0.35, "n2": 0.2, "S0": 2.6e-4, "noise_sd": 6e-5}
+    rec = simulate(p, duration=4000.0, dt=0.1, rng=np.random.default_rng(3))
+    state = RecordState.from_record(rec, denoise=True)
+    assert not state.spectrum.band_limited
+    # the filter's own noise (second-difference periodogram, module docstring of
+    # noise_floor); the plain periodogram's floor said 1.5e-3 here
+    assert state.noise["sd"] == pytest.approx(6e-5, rel=0.3)
+    est = estimate(rec, "paper,measurement_noise")
+    assert not est.model.has("wb") and est.values["noise_sd"] == pytest.approx(6e-5, rel=0.3)
+
+
 def test_noise_floor_needs_a_spectral_tail():
     # white noise: w_e = sigma_v / sigma_x ~ w_N / sqrt(3), so nothing lies above 3 w_e
     rng = np.random.default_rng(0)
