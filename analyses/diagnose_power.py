@@ -309,6 +309,18 @@ def read_csv(path: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
+def _commit() -> str:
+    """The working tree's commit (``unknown`` outside git), with ``+changes`` if dirty."""
+    import subprocess
+
+    def git(*args):
+        r = subprocess.run(["git", *args], capture_output=True, text=True, cwd=RESULTS.parent)
+        return r.stdout.strip() if r.returncode == 0 else ""
+
+    head = git("rev-parse", "--short", "HEAD") or "unknown"
+    return head + ("+changes" if git("status", "--porcelain", "--", "../src") else "")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run (or resume) the study, then write the summary."""
     from diagnose_power_summary import summarize
@@ -343,6 +355,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         bounds = compute_bounds(sorted(need), seed=a.seed, known=bounds)
         bounds_path.write_text(json.dumps({"|".join(k): v for k, v in bounds.items()}, indent=1))
     if not a.summary:
+        a.out.mkdir(parents=True, exist_ok=True)
+        if not (a.out / "COMMIT").exists():  # the code the study's records were run with
+            (a.out / "COMMIT").write_text(_commit() + "\n")
         done = {(r["cell"], int(r["record"])) for r in read_csv(path)}
         todo = [
             r
@@ -352,7 +367,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if (r["cell"], r["record"]) not in done
         ]
         todo.sort(key=priority)
-        new = not path.exists()
+        new = not path.exists() or path.stat().st_size == 0
         with open(path, "a", newline="") as fh:
             w = csv.DictWriter(fh, FIELDS)
             if new:
