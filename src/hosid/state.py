@@ -44,6 +44,7 @@ from .model.terms import Scales
 from .record import Record
 from .spectra.blocks import BlockLayout, block_fft, choose_layout, distinct_bounds, windowed_fft
 from .spectra.response import ResponseSpectrum, response_spectrum
+from .spectra.tail import difference_gain, difference_periodogram
 from .spectra.windows import Window, get_window
 
 __all__ = ["RecordState", "derivatives", "velocity_deficit"]
@@ -276,12 +277,10 @@ def noise_floor(x: np.ndarray, dt: float, *, bounds=None) -> tuple[np.ndarray, d
     wN = math.pi / dt
     chunks = []
     for p in pieces:
-        d = p[2:] - 2.0 * p[1:-1] + p[:-2]
-        F = np.fft.rfft(d)
-        w = 2.0 * np.pi * np.fft.rfftfreq(d.size, dt)
-        gain = np.maximum((2.0 - 2.0 * np.cos(w * dt)) ** 2, 1e-300)
+        w = 2.0 * np.pi * np.fft.rfftfreq(p.size - 2, dt)
         # the displacement's periodogram, through the difference's flat spectrum
-        P = np.abs(F) ** 2 * dt / (2.0 * np.pi * d.size) / gain
+        Pd = difference_periodogram(p[None, :], dt, slice(None))[0]
+        P = Pd / np.maximum(difference_gain(w, dt), 1e-300)
         # average the periodogram over chunks of 64 neighbouring bins before the fit
         k = np.flatnonzero((w >= 6.0 * we) & (w < wN))
         width = 64 if k.size >= 256 else 1

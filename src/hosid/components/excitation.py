@@ -86,15 +86,14 @@ class Excitation:
         return out
 
     def shape(self, omega: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        r""":math:`L(\omega)` for each ``theta``, shape ``theta.shape[:-1] + omega.shape``."""
+        r""":math:`L(\omega)` for each ``theta``, shape ``theta.shape[:-1] + omega.shape``:
+        :meth:`lowpass` cut at the band's edge.
+        """
         omega = np.asarray(omega, dtype=float)
         th = np.asarray(theta, dtype=float)
-        out = np.ones(th.shape[:-1] + omega.shape)
-        new = (...,) + (None,) * omega.ndim
-        for _, a in self.inverse_factors():
-            out = out / (1.0 + omega**2 * a(th)[new])
+        out = self.lowpass(omega, th)
         if self.i_wb is not None:
-            out = out * (np.abs(omega) <= th[(..., self.i_wb, *new[1:])])
+            out = out * (np.abs(omega) <= th[(..., self.i_wb) + (None,) * omega.ndim])
         return out
 
     def inverse_factors(self) -> list[tuple[int, Callable]]:

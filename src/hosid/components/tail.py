@@ -54,6 +54,7 @@ from ..model.model import Model
 from ..spectra.tail import (
     LOW,
     MIN_BINS,
+    difference_gain,
     difference_periodogram,
     folded_tail,
     level_free,
@@ -106,7 +107,7 @@ class Tail:
         W2, T = folded_tail(omega, dt, *exc.linear)
         if model.has("wb"):  # the band's roll-off at the pilot, held
             T = T * _band_factor(exc, np.sqrt(W2), th0)
-        G = (2.0 - 2.0 * np.cos(omega * dt)) ** 2  # the floor's gain (the difference's)
+        G = difference_gain(omega, dt)  # the floor's direction
 
         i_wc = model.index("wc") if model.has("wc") else None
         i_ns = model.index("noise_sd") if model.has("noise_sd") else None

@@ -294,9 +294,7 @@ class ExcitationLevel(Term):
 @dataclass(frozen=True, repr=False)
 class ColouredExcitation(Term):
     r"""The white force through a first-order low-pass,
-    :math:`S_g = S_0\,\omega_c^2/(\omega_c^2+\omega^2)`;
-    :math:`\omega_c \sim \log U(\omega_n/10, 100\,\omega_N)` (up to :math:`30\,\omega_b` under a
-    band-limited excitation).
+    :math:`S_g = S_0\,\omega_c^2/(\omega_c^2+\omega^2)` (prior: :meth:`default_priors`).
     """
 
     name: ClassVar[str] = "coloured_excitation"
@@ -312,11 +310,11 @@ class ColouredExcitation(Term):
         return wc**2 / (wc**2 + omega**2)
 
     def default_priors(self, scales):
-        r"""``logU(w_n / 10, 100 w_N)``; up to 30 times the edge of a band-limited
-        excitation (whose flat band is a corner far above the edge).  A corner far above
-        the Nyquist frequency :math:`\omega_N` still shows in the sampled spectrum's top,
-        by :math:`\omega_N^2/\omega_c^2` (:mod:`hosid.components.tail`); at
-        :math:`100\omega_N` the force is white on any sampled band.
+        r""":math:`\omega_c \sim \log U(\omega_n/10, 100\,\omega_N)`, up to :math:`30\,\omega_b`
+        under a band-limited excitation (a flat band is a corner far above its edge).  A
+        corner above :math:`\omega_N` still shows in the sampled spectrum's top, by
+        :math:`\omega_N^2/\omega_c^2` (:mod:`hosid.components.tail`); at :math:`100\omega_N`
+        the force is white on any sampled band.
         """
         top = 100.0 * scales.omega_nyquist
         if scales.band_edge is not None:

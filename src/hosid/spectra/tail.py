@@ -37,6 +37,7 @@ __all__ = [
     "LOW",
     "MIN_BINS",
     "N_ALIAS",
+    "difference_gain",
     "difference_periodogram",
     "folded_tail",
     "level_free",
@@ -62,6 +63,13 @@ def tail_bins(n: int, dt: float, lo: float, hi: float) -> tuple[np.ndarray, np.n
     return sel, w[sel]
 
 
+def difference_gain(omega: np.ndarray, dt: float) -> np.ndarray:
+    r"""The second difference's power gain :math:`|D|^2 = (2 - 2\cos\omega\Delta t)^2`
+    (also the direction of a white noise floor in its spectrum).
+    """
+    return (2.0 - 2.0 * np.cos(np.asarray(omega, dtype=float) * dt)) ** 2
+
+
 def difference_periodogram(blocks: np.ndarray, dt: float, sel: np.ndarray) -> np.ndarray:
     r"""The periodogram :math:`|D_k|^2\Delta t/(2\pi n)` of each block's second
     difference (``blocks`` ``(B, M)``, ``n = M - 2``) at the bins ``sel``
@@ -78,8 +86,7 @@ def folded_tail(omega: np.ndarray, dt: float, c: float, k: float) -> tuple[np.nd
     """
     wN = math.pi / dt
     W = omega[:, None] + 2.0 * wN * np.arange(-N_ALIAS, N_ALIAS + 1)
-    gain = (2.0 - 2.0 * np.cos(omega * dt)) ** 2
-    return W**2, gain[:, None] / ((k - W**2) ** 2 + (c * W) ** 2)
+    return W**2, difference_gain(omega, dt)[:, None] / ((k - W**2) ** 2 + (c * W) ** 2)
 
 
 def level_free(directions: list[np.ndarray], level: np.ndarray, S: np.ndarray) -> list[np.ndarray]:
@@ -118,6 +125,5 @@ def periodogram_scores(
     """
     W2, T = folded_tail(omega, dt, *shape)
     S = T.sum(axis=1)
-    gain = (2.0 - 2.0 * np.cos(omega * dt)) ** 2  # a floor's direction
-    q = level_free([-np.sum(W2 * T, axis=1), gain], S, S)
+    q = level_free([-np.sum(W2 * T, axis=1), difference_gain(omega, dt)], S, S)
     return np.array([np.sum(qi * Pbar) for qi in q]) / np.mean(Pbar / S)
