@@ -54,6 +54,21 @@ power study (``diagnose_power.py``):
   now: an exact Ornstein-Uhlenbeck step and its integral, two normals per sub-step);
 * ``noise_sd``: white noise added to the sampled displacement after the simulation.
 
+Two more forces replace the white one (``independent_forces.py``; the O step's kick is
+the force's exact impulse over the sub-step, drawn a chunk ahead since the force does
+not depend on the oscillator):
+
+* ``wf, zf`` (together, both > 0): a narrow-band force, the white noise through
+  ``g'' + 2 zf wf g' + wf^2 g = wf^2 w``, two-sided spectrum
+  ``S0 wf^4 / ((wf^2 - omega^2)^2 + (2 zf wf omega)^2)`` (``S0`` at ``omega = 0``);
+  ``(g, g', impulse)`` advance by the exact transition matrix and noise covariance of
+  the linear SDE over ``h`` (Van Loan; three normals a sub-step), ``(g, g')`` starting
+  from its stationary law (two normals before the first chunk).  Not with ``wc``.
+* ``rate`` (> 0): Poisson impulses of rate ``rate`` per second with areas
+  ``N(0, 2 pi S0 / rate)``: the flat spectrum ``S0`` of the white force, not Gaussian
+  (the white force is the limit ``rate -> inf``); the kick is the sum of the
+  ``Poisson(rate h)`` areas in the sub-step.  Not with ``wc`` or ``wf``.
+
 With none of them the random stream and the records are those of the paper-only
 simulator above.
 """
@@ -61,20 +76,33 @@ simulator above.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
+import sys
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import numba
 import numpy as np
 
 from hosid.record import Record
 
+try:
+    import independent_forces
+except ModuleNotFoundError:  # imported by path (hosid batch): analyses/ is not on sys.path
+    _spec = importlib.util.spec_from_file_location(
+        "independent_forces", Path(__file__).with_name("independent_forces.py")
+    )
+    independent_forces = importlib.util.module_from_spec(_spec)
+    sys.modules["independent_forces"] = independent_forces
+    _spec.loader.exec_module(independent_forces)
+
 __all__ = ["compare", "simulate"]
 
 CHUNK = 8192  # samples per noise chunk
 _KEYS = ("a1", "n1", "a2", "n2", "S0")
 #: Optional keys: the candidate effects (module docstring), 0 when absent.
-EFFECT_KEYS = ("b2", "mu", "m", "wc", "noise_sd")
+EFFECT_KEYS = ("b2", "mu", "m", "wc", "noise_sd", "wf", "zf", "rate")
 
 
 @numba.njit(cache=True, inline="always")
@@ -89,13 +117,14 @@ def _friction(v, d):  # pragma: no cover - compiled
 
 @numba.njit(cache=True)
 def _baoab(
-    xi, n_out, sub, h, a1, n1, a2, n2, b2, mu, m, sigma, wc, state, xs, vs
+    xi, n_out, sub, h, a1, n1, a2, n2, b2, mu, m, sigma, wc, direct, state, xs, vs
 ):  # pragma: no cover - compiled
     """Advance ``state = [x, v, g]`` by ``n_out`` samples of ``sub`` splitting steps.
 
     White force (``wc == 0``): the O kick is ``sigma sqrt(h) xi[0, k]``.  Low-pass force
     ``g = state[2]``: the kick is the force's exact impulse over ``h``, drawn jointly with
-    its next value from ``xi[0, k]`` and ``xi[1, k]``.
+    its next value from ``xi[0, k]`` and ``xi[1, k]``.  ``direct``: ``xi[0, k]`` is the
+    kick itself (the forces of ``independent_forces.py``).
     """
     hh = 0.5 * h
     e = math.exp(-a1 * hh)
@@ -129,6 +158,8 @@ def _baoab(
             if wc > 0.0:
                 v += g * one / wc + l11 * xi[0, k]
                 g = g * eg + l21 * xi[0, k] + l22 * xi[1, k]
+            elif direct:
+                v += xi[0, k]
             else:
                 v += s * xi[0, k]
             k += 1
@@ -174,8 +205,9 @@ def simulate(
     ----------
     params : mapping
         ``a1, n1, a2, n2, S0`` (``a1, n1, n2 >= 0``, ``a1 + n1 > 0``, ``a2 > 0``,
-        ``S0 > 0``) and optionally the effects ``b2, mu, m, wc, noise_sd`` (module
-        docstring; ``mu, wc, noise_sd >= 0``, ``b2`` only with ``n2 > 0``).
+        ``S0 > 0``) and optionally the effects ``b2, mu, m, wc, noise_sd`` and forces
+        ``wf, zf, rate`` (module docstring; ``mu, wc, noise_sd, rate >= 0``, ``b2`` only
+        with ``n2 > 0``, ``wf`` and ``zf`` both > 0 or both 0, one non-white force).
     duration, dt : float
         Record length and sampling interval (s).
     rng : numpy.random.Generator
@@ -211,13 +243,23 @@ def simulate(
             f"missing {sorted(missing)}, unknown {sorted(unknown)}"
         )
     a1, n1, a2, n2, S0 = (float(params[k]) for k in _KEYS)
-    b2, mu, m, wc, noise_sd = (float(params.get(k, 0.0)) for k in EFFECT_KEYS)
+    b2, mu, m, wc, noise_sd, wf, zf, rate = (float(params.get(k, 0.0)) for k in EFFECT_KEYS)
     if not (a1 >= 0 and n1 >= 0 and n2 >= 0 and a1 + n1 > 0 and a2 > 0 and S0 > 0):
         raise ValueError(f"parameters out of range: {dict(params)}")
     if not (mu >= 0 and wc >= 0 and noise_sd >= 0 and (b2 == 0 or n2 > 0)):
         raise ValueError(
             f"effects out of range (mu, wc, noise_sd >= 0; b2 needs n2 > 0): {params}"
         )
+    if not all(math.isfinite(f) for f in (wf, zf, rate)):
+        raise ValueError(f"wf, zf and rate must be finite: {params}")
+    if not (wf >= 0 and zf >= 0 and (wf > 0) == (zf > 0)):
+        raise ValueError(f"the narrow-band force needs both wf > 0 and zf > 0: {params}")
+    if wf > 0 and wc > 0:
+        raise ValueError("wc (low-pass force) and wf, zf (narrow-band force) exclude each other")
+    if not rate >= 0:
+        raise ValueError(f"rate (Poisson impulses per second) must be >= 0: {params}")
+    if rate > 0 and (wc > 0 or wf > 0):
+        raise ValueError("rate (Poisson impulses) replaces the white force: not with wc or wf")
     if not (dt > 0 and duration > 0 and int(substeps) >= 1):
         raise ValueError("dt, duration and substeps must be positive")
     if burn_in is None:
@@ -229,12 +271,19 @@ def simulate(
     state = np.zeros(3)
     xs, vs = np.empty(n_out), np.empty(n_out)
     scratch = np.empty((2, CHUNK))
-    coefficients = (a1, n1, a2, n2, b2, mu, m, sigma, wc)
+    force = None
+    if wf > 0:
+        force = independent_forces.NarrowBand(wf, zf, S0, h, rng)
+    elif rate > 0:
+        force = independent_forces.PoissonImpulses(rate, S0, h)
+    coefficients = (a1, n1, a2, n2, b2, mu, m, sigma, wc, force is not None)
     done = 0
     while done < n_burn + n_out:
         k = min(CHUNK, n_burn + n_out - done)
-        # one normal a sub-step for a white force (the paper-only stream), two for a low-pass
-        xi = rng.standard_normal((2, k * sub) if wc > 0 else (1, k * sub))
+        if force is not None:  # the force's impulses over the chunk's sub-steps
+            xi = force.impulses(rng, k * sub)
+        else:  # one normal a sub-step for a white force (the paper-only stream), two for wc
+            xi = rng.standard_normal((2, k * sub) if wc > 0 else (1, k * sub))
         _baoab(xi, k, sub, h, *coefficients, state, *scratch)
         if done + k > n_burn:
             lo = max(n_burn - done, 0)

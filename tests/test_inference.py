@@ -301,7 +301,7 @@ def test_fit_returns_the_documented_tree(short_fit):
     assert set(tree["sample_stats"].data_vars) == {"lp", "log_prior"}
     assert set(tree["log_likelihood"].data_vars) == {"identities", "J2"}
     assert set(tree["prior"].data_vars) == {*PAPER.param_names, "a1eq"}
-    assert set(tree["observed_data"].data_vars) == {"Sxx"}
+    assert set(tree["observed_data"].data_vars) == {"Sxx", "force"}
     assert set(tree["constant_data"].data_vars) == {"theta_hat", "laplace_cov"}
     assert tree["constant_data"]["laplace_cov"].shape == (5, 5)
     assert tree["likelihood_map"]["log_likelihood"].shape == (61, 61)

@@ -52,7 +52,7 @@ def test_candidates_are_spelled_as_in_notes():
 def test_term_kinds_and_parameters():
     kinds = {name: t.kind for name, t in TERMS.items()}
     assert kinds["excitation_level"] == kinds["coloured_excitation"] == "excitation"
-    assert kinds["band_limited_excitation"] == "excitation"
+    assert kinds["band_limited_excitation"] == kinds["narrowband_excitation"] == "excitation"
     assert kinds["measurement_noise"] == "observation"
     assert set(DRIFT) == {
         "linear_damping",
@@ -65,7 +65,8 @@ def test_term_kinds_and_parameters():
     }
     params = [p for t in TERMS.values() for p in t.params]
     assert params == [
-        "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "noise_sd"
+        "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "wf", "zf",
+        "noise_sd",
     ]  # fmt: skip
     for t in TERMS.values():
         assert t.latex and type(t).__doc__
@@ -202,11 +203,13 @@ def test_spec_strings_lists_aliases_and_canonical_order():
     assert Model.from_spec("excitation_mean,linear") == Model.from_spec("linear").with_term(
         "excitation_mean"
     )
-    full = Model.from_spec(list(TERMS))
+    full = Model.from_spec([t for t in TERMS if t != "narrowband_excitation"])
     assert full.param_names == (
         "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "noise_sd"
     )  # fmt: skip
     assert Model.from_spec(full) is full
+    nb = Model.from_spec("paper,measurement_noise,narrowband_excitation")
+    assert nb.param_names == ("a1", "n1", "a2", "n2", "S0", "wf", "zf", "noise_sd")
 
 
 @pytest.mark.parametrize("spec", ["quadratic_dampnig", "linear,friction", ["paper", "cubic"]])
@@ -327,7 +330,7 @@ def test_prior_support_and_bad_arguments():
 
 
 def test_default_priors_hold_the_paper_values_and_the_null_effects():
-    model = Model.from_spec(list(TERMS))
+    model = Model.from_spec([t for t in TERMS if t != "narrowband_excitation"])
     priors = model.default_priors(PAPER_SCALES)
     assert priors.names == model.param_names
     assert all(isinstance(priors[n], Prior) for n in priors)

@@ -14,12 +14,12 @@ from matplotlib.figure import Figure
 from hosid.errors import HosidInputError
 from hosid.inference import fit
 from hosid.model import PAPER_PARAMS, simulate
-from hosid.output import plots
+from hosid.output import plots, spectrum_plots
 from hosid.output.report import figures, write_report
 from hosid.output.results import attr, summarize
 
 PAPER = ["a1", "n1", "a2", "n2", "S0"]
-STEMS = ["corner", "likelihood_map", "restoring_force", "trace", "spectrum"]
+STEMS = ["corner", "likelihood_map", "restoring_force", "trace", "spectrum", "force_spectrum"]
 
 
 def _record(seed: int):
@@ -147,7 +147,7 @@ def test_trace_plot_rows_and_walkers(paper_fit):
 
 
 def test_spectrum_plot_linear_equivalent(paper_fit):
-    (ax,) = plots.spectrum_plot(paper_fit).axes
+    (ax,) = spectrum_plots.spectrum_plot(paper_fit).axes
     assert ax.get_yscale() == "log"
     assert ax.get_xlabel() == r"$\omega$ (rad/s)" and "m² s" in ax.get_ylabel()
     data, model = ax.get_lines()
@@ -161,6 +161,21 @@ def test_spectrum_plot_linear_equivalent(paper_fit):
     # the linear equivalent follows the record within a factor of two over the band
     ratio = model.get_ydata() / data.get_ydata()
     assert np.median(ratio) == pytest.approx(1.0, abs=0.5)
+
+
+def test_force_spectrum_plot_sets_the_inferred_force_against_the_model(paper_fit):
+    (ax,) = spectrum_plots.force_spectrum_plot(paper_fit).axes
+    assert ax.get_yscale() == "log" and "m²/s³" in ax.get_ylabel()
+    data, model = ax.get_lines()
+    obs = paper_fit["observed_data"]
+    np.testing.assert_array_equal(data.get_ydata(), obs["force"].values)
+    # a white model: the median of S0 over the thinned draws, flat
+    assert np.ptp(model.get_ydata()) == 0.0
+    s0 = np.median(paper_fit["posterior"]["S0"].values)
+    assert model.get_ydata()[0] == pytest.approx(s0, rel=0.02)
+    # the paper oscillator's inferred force is white at its level over the band (J2's
+    # standardized periodogram: mean 1 within 10 %)
+    assert np.mean(data.get_ydata()) / s0 == pytest.approx(1.0, abs=0.1)
 
 
 def test_unit_attribute_relabels(paper_fit):

@@ -159,6 +159,8 @@ def build_parser() -> argparse.ArgumentParser:
         ("wc", _positive, "corner (rad/s) of a low-pass on the force"),
         ("wb", _positive, "edge (rad/s) above which the force has no power"),
         ("rolloff", _nonnegative, "roll-off beta of the band-limited force within its band"),
+        ("wf", _positive, "frequency (rad/s) of a second-order shaping filter on the force"),
+        ("zf", _positive, "damping ratio of that filter (with --wf)"),
         ("noise_sd", _positive, "sd of white measurement noise on x"),
     ):
         sim.add_argument(

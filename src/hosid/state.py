@@ -33,6 +33,7 @@ confirms the correction to 0.1 % for :math:`E|\dot x|^3`, :math:`E\dot x^4` and
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -43,47 +44,25 @@ from .errors import HosidInputError
 from .model.terms import Scales
 from .record import Record
 from .spectra.blocks import BlockLayout, block_fft, choose_layout, distinct_bounds, windowed_fft
+from .spectra.derivatives import (
+    C_ALIAS,
+    derivatives,
+    jet_deficit,
+    smooth_derivatives,
+    velocity_deficit,
+)
 from .spectra.response import ResponseSpectrum, response_spectrum
 from .spectra.tail import difference_gain, difference_periodogram
 from .spectra.windows import Window, get_window
 
-__all__ = ["RecordState", "derivatives", "velocity_deficit"]
-
-
-def derivatives(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Spectral velocity and acceleration of a record (module docstring)."""
-    x = np.asarray(x, dtype=float)
-    n = x.size
-    slope = (x[-1] - x[0]) / ((n - 1) * dt)
-    r = x - (x[0] + slope * dt * np.arange(n))
-    F = np.fft.rfft(r)
-    w = 2.0 * np.pi * np.fft.rfftfreq(n, dt)
-    if n % 2 == 0:
-        F[-1] = 0.0  # the Nyquist bin has no derivative
-    v = np.fft.irfft(1j * w * F, n) + slope
-    a = np.fft.irfft(-(w**2) * F, n)
-    return v, a
-
-
-#: The alias constant c of the module docstring (white excitation): 2 - pi^2/6.
-C_ALIAS = 2.0 - math.pi**2 / 6.0
-
-
-def velocity_deficit(S0, dt: float, shape=None, n_alias: int = 60) -> np.ndarray:
-    r"""The velocity variance :math:`s^2` a sampled record lacks (module docstring).
-
-    ``shape`` is the excitation's spectral shape :math:`L(\omega)` (a callable on an
-    array of frequencies), ``None`` for white noise.
-    """
-    wN = math.pi / dt
-    if shape is None:
-        return np.asarray(S0) * (2.0 - C_ALIAS) / wN
-    u = np.linspace(-1.0, 1.0, 1001)[:, None]
-    j = np.array([k for k in range(-n_alias, n_alias + 1) if k])[None, :]
-    W = (u + 2.0 * j) * wN
-    integrand = 1.0 / W**2 - (u * wN) ** 2 / W**4
-    val = np.trapezoid((integrand * np.asarray(shape(W))).sum(axis=1), u[:, 0] * wN)
-    return np.asarray(S0) * val
+__all__ = [
+    "C_ALIAS",
+    "RecordState",
+    "derivatives",
+    "jet_deficit",
+    "smooth_derivatives",
+    "velocity_deficit",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +81,7 @@ class RecordState:
     centred: bool = True
     noise: dict | None = None  # the noise floor and the filter's velocity loss, if denoised
     repeats: list | None = None  # per segment, (lag, r) if it repeats itself, else None
+    j: np.ndarray | None = None  # the jerk (third derivative) of a smooth state
     _fft_cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -113,10 +93,12 @@ class RecordState:
         window: str = "hann",
         centred: bool = True,
         denoise: bool = False,
+        smooth: bool = False,
     ) -> RecordState:
         """Derivatives, scales, response spectrum (:mod:`hosid.spectra.response`) and
         block layout of ``record``; with ``denoise`` the displacement is Wiener-filtered
-        first (:func:`noise_floor`).
+        first (:func:`noise_floor`); with ``smooth`` (a coloured force, whose response is
+        smooth) the derivatives up to the jerk are taken with :func:`smooth_derivatives`.
 
         Raises
         ------
@@ -136,6 +118,17 @@ class RecordState:
         if not (sigma_x > 0 and sigma_v > 0 and math.isfinite(sigma_v / sigma_x)):
             raise HosidInputError("the record is constant: it has no response to identify")
         omega_n = sigma_v / sigma_x
+        jerk = None
+        if smooth:  # an eighth of a period at each end fits the end derivatives
+            n_fit = round(2.0 * math.pi / omega_n / record.dt / 8.0)
+            v, a, jerk = (
+                np.concatenate(d)
+                for d in zip(
+                    *(smooth_derivatives(p, record.dt, n_fit) for p in record.split(xc)),
+                    strict=True,
+                )
+            )
+            sigma_v = float(np.std(v))
         # the landmarks of the record as measured: a Wiener-filtered record's acceleration
         # falls above the noise's edge as if its force stopped there
         spectrum = response_spectrum(raw, record.dt, sigma_v=sigma_v, bounds=record.bounds)
@@ -153,27 +146,16 @@ class RecordState:
         level = _level(a, layout, win, omega_n, top)
         scales = Scales(sigma_x, sigma_v, level, record.dt, spectrum.edge)
         x = xc if centred else xc + offset
-        return cls(record, x, offset, v, a, layout, win, scales, spectrum, centred, noise, repeats)
+        return cls(
+            record, x, offset, v, a, layout, win, scales, spectrum, centred, noise, repeats, jerk
+        )
 
     def recentred(self, centred: bool) -> RecordState:
         """The same state with the displacement centred or as recorded."""
         if centred == self.centred:
             return self
         x = self.x - self.offset if centred else self.x + self.offset
-        return RecordState(
-            self.record,
-            x,
-            self.offset,
-            self.v,
-            self.a,
-            self.layout,
-            self.window,
-            self.scales,
-            self.spectrum,
-            centred,
-            self.noise,
-            self.repeats,
-        )
+        return dataclasses.replace(self, x=x, centred=centred, _fft_cache={})
 
     def repeat_note(self) -> str | None:
         """One sentence on the segments that repeat themselves, or ``None``."""
@@ -196,8 +178,11 @@ class RecordState:
 
     @cached_property
     def blocks(self) -> dict[str, np.ndarray]:
-        """``x``, ``v``, ``a`` cut into blocks, each ``(B, M)``."""
-        return {k: self.layout.take(getattr(self, k)) for k in ("x", "v", "a")}
+        """``x``, ``v``, ``a`` (and ``j`` of a smooth state) cut into blocks, each
+        ``(B, M)``.
+        """
+        keys = ("x", "v", "a") if self.j is None else ("x", "v", "a", "j")
+        return {k: self.layout.take(getattr(self, k)) for k in keys}
 
     @cached_property
     def block_edges(self) -> tuple[np.ndarray, np.ndarray]:

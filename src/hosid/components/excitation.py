@@ -41,8 +41,9 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..model.excitation import Spectrum
 from ..model.model import Model
-from ..state import velocity_deficit
+from ..state import jet_deficit, velocity_deficit
 
 __all__ = ["ROLLOFF_FLOOR", "Excitation", "input_power"]
 
@@ -52,11 +53,12 @@ ROLLOFF_FLOOR = 1e-6
 
 class Excitation:
     """The excitation of ``model`` (module docstring), with its equivalent linear system
-    frozen at ``pilot``.
+    frozen at ``pilot``; the spectrum itself is :class:`hosid.model.excitation.Spectrum`.
     """
 
     def __init__(self, model: Model, pilot: np.ndarray, sigma_v: float, sigma_x: float):
         self.model = model
+        self.spectrum = Spectrum(model)
         self.i_S0 = model.index("S0")
         self.i_wc = model.index("wc") if model.has("wc") else None
         self.i_wb = model.index("wb") if model.has("wb") else None
@@ -68,15 +70,25 @@ class Excitation:
     @property
     def white(self) -> bool:
         """Whether the force is white noise."""
-        return self.i_wc is None and self.i_wb is None
+        return self.spectrum.white
+
+    @property
+    def whitening(self) -> bool:
+        """Whether the identities whiten the force exactly (a rational shaping filter)."""
+        return self.spectrum.whitening
+
+    @property
+    def shape_indices(self) -> tuple[int, ...]:
+        """The parameters the in-band shape sees."""
+        return self.spectrum.shape_indices
 
     def S0(self, theta: np.ndarray) -> np.ndarray:
         """The level :math:`S_0`."""
-        return np.asarray(theta)[..., self.i_S0]
+        return self.spectrum.S0(theta)
 
     def _corners(self, theta) -> list[np.ndarray]:
         r"""The low-pass corners of :math:`L`: :math:`\omega_c` and
-        :math:`\omega_b/\sqrt\beta`, each ``theta.shape[:-1]``.
+        :math:`\omega_b/\sqrt\beta`, each ``theta.shape[:-1]`` (Stein path).
         """
         th = np.asarray(theta, dtype=float)
         out = [] if self.i_wc is None else [th[..., self.i_wc]]
@@ -86,74 +98,40 @@ class Excitation:
         return out
 
     def shape(self, omega: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        r""":math:`L(\omega)` for each ``theta``, shape ``theta.shape[:-1] + omega.shape``:
-        :meth:`lowpass` cut at the band's edge.
-        """
-        omega = np.asarray(omega, dtype=float)
-        th = np.asarray(theta, dtype=float)
-        out = self.lowpass(omega, th)
-        if self.i_wb is not None:
-            out = out * (np.abs(omega) <= th[(..., self.i_wb) + (None,) * omega.ndim])
-        return out
+        r""":math:`L(\omega)` for each ``theta``, shape ``theta.shape[:-1] + omega.shape``."""
+        return self.spectrum.shape(omega, theta)
 
-    def inverse_factors(self) -> list[tuple[int, Callable]]:
-        r"""The factors :math:`1 + \omega^2a(\theta)` of :math:`1/L` in the band:
-        ``[(parameter index, a)]`` (:math:`a = 1/\omega_c^2`, :math:`\beta/\omega_b^2`).
-        """
-        out = []
-        if self.i_wc is not None:
-            i = self.i_wc
-            out.append((i, lambda th: np.asarray(th)[..., i] ** -2.0))
-        if self.i_rb is not None:
-            r, b = self.i_rb, self.i_wb
-            out.append((r, lambda th: np.asarray(th)[..., r] / np.asarray(th)[..., b] ** 2))
-        return out
+    def lowpass(self, omega: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """The in-band factors of :math:`L` (its shape without the band's edge)."""
+        return self.spectrum.lowpass(omega, theta)
 
     def inverse_shape(self, omega: np.ndarray) -> list[tuple[np.ndarray, Callable]]:
-        r""":math:`1/L(\omega;\theta) = \sum_mb_m(\omega)\,a_m(\theta)` inside the band:
-        ``[(b_m, a_m)]`` with :math:`b_m = \omega^{2m}` and :math:`a_m` the elementary
-        symmetric polynomials of the factors' :math:`a` (so that a spectral component sums
+        r""":math:`1/L(\omega;\theta) = \sum_kb_k(\omega)\,c_k(\theta)` inside the band:
+        ``[(b_k, c_k)]`` with :math:`b_k = \omega^{2k}` (so that a spectral component sums
         its bins once per basis function).
         """
         w2 = np.asarray(omega, dtype=float) ** 2
-        factors = [a for _, a in self.inverse_factors()]
-
-        def elementary(th):  # coefficients of prod_m (1 + a_m x)
-            e = [np.ones(np.shape(th)[:-1])]
-            for a in factors:
-                av = a(th)
-                e = [e[0]] + [
-                    (e[j] if j < len(e) else 0.0) + av * e[j - 1] for j in range(1, len(e) + 1)
-                ]
-            return e
-
-        return [(w2**m, lambda th, m=m: elementary(th)[m]) for m in range(len(factors) + 1)]
+        n = len(self.spectrum.inverse_poly(np.ones(len(self.model.param_names))))
+        return [(w2**k, lambda th, k=k: self.spectrum.inverse_poly(th)[k]) for k in range(n)]
 
     def shape_derivatives(
         self, omega: np.ndarray, theta: np.ndarray
     ) -> list[tuple[int, np.ndarray]]:
         r""":math:`\partial\log L/\partial\theta_i` in the band for the shape parameters
-        the spectrum sees (:math:`\omega_c`, :math:`\beta`; not the edge), at one ``theta``.
+        the spectrum sees (not a band's edge), at one ``theta``.
         """
-        th = np.asarray(theta, dtype=float)
-        w2 = np.asarray(omega, dtype=float) ** 2
-        out = []
-        if self.i_wc is not None:
-            wc = th[self.i_wc]
-            out.append((self.i_wc, 2.0 * w2 / (wc * (wc**2 + w2))))
-        if self.i_rb is not None:
-            wb, beta = th[self.i_wb], th[self.i_rb]
-            out.append((self.i_rb, -(w2 / wb**2) / (1.0 + beta * w2 / wb**2)))
-        return out
+        return self.spectrum.log_shape_gradient(omega, theta)
 
     def powers(self, theta: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         r"""The input-power ratios :math:`\rho = E[\dot xg]/\pi S_0` (1 for white noise)
         and :math:`\rho_x = E[xg]/\pi S_0` (0 for white noise) for each ``theta``, of the
         force as a record sampled at ``dt`` sees it (module docstring): its shape in the
-        band and, up to the edge if any, white at :math:`L(\omega_N)` above it.
+        band and, up to the edge if any, white at :math:`L(\omega_N)` above it.  A
+        whitening filter is exact in the identities (:mod:`hosid.components.identities`):
+        1 and 0.
         """
         th = np.asarray(theta, dtype=float)
-        if self.white:
+        if self.white or self.whitening:
             return np.ones(th.shape[:-1]), np.zeros(th.shape[:-1])
         wN = math.pi / dt
         wb = np.inf if self.i_wb is None else th[..., self.i_wb]
@@ -167,24 +145,17 @@ class Excitation:
             for r_in, r_all, r_band in zip(inside, full, band, strict=True)
         )
 
-    def lowpass(self, omega: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """The low-pass factors of :math:`L` (its shape without the band's edge)."""
-        omega = np.asarray(omega, dtype=float)
-        th = np.asarray(theta, dtype=float)
-        new = (...,) + (None,) * omega.ndim
-        out = np.ones(th.shape[:-1] + omega.shape)
-        for _, a in self.inverse_factors():
-            out = out / (1.0 + omega**2 * a(th)[new])
-        return out
-
     def deficit(self, theta: np.ndarray, dt: float) -> float:
         """The velocity restoration :math:`s^2` at one ``theta`` (:mod:`hosid.state`), of
-        the force as the sampled record sees it (module docstring).
+        the force as the sampled record sees it (module docstring; a whitening filter's
+        own shape, as the identities of the augmented state need it).
         """
         S0 = float(self.S0(theta))
         if self.white:
             return float(velocity_deficit(S0, dt))
         th = np.asarray(theta, dtype=float)
+        if self.whitening:
+            return float(velocity_deficit(S0, dt, lambda w: self.lowpass(w, th)))
         wN = math.pi / dt
 
         edge = np.inf if self.i_wb is None else float(th[self.i_wb])
@@ -194,6 +165,15 @@ class Excitation:
             return self.lowpass(np.clip(w, -wN, wN), th) * (np.abs(w) <= edge)
 
         return float(velocity_deficit(S0, dt, seen))
+
+    def jet_deficit(self, theta: np.ndarray, dt: float) -> np.ndarray:
+        """The covariance of what the sampled jet ``(x, v, a, a')`` lacks at one
+        ``theta`` (:func:`hosid.state.jet_deficit`), up to the whitening order + 1.
+        """
+        th = np.asarray(theta, dtype=float)
+        return jet_deficit(
+            float(self.S0(th)), dt, lambda w: self.lowpass(w, th), self.spectrum.order + 1
+        )
 
 
 def input_power(c, k, *, corners: Sequence = (), wb=None) -> tuple[np.ndarray, np.ndarray]:

@@ -51,6 +51,7 @@ from ..model.model import Model
 from ..state import RecordState
 from .base import Moments, restoration
 from .excitation import Excitation
+from .jets import EXTRA, whitened_statistics
 
 __all__ = ["Identities"]
 
@@ -69,13 +70,11 @@ class Identities:
         ``s2``: block ``b``'s equation ``j`` is ``const + Q @ theta_drift - pi S0 (rho e +
         rho_x ex)`` (:class:`hosid.components.excitation.Excitation`).
         """
-        if self.which not in ("all", "restoring"):
-            raise ValueError(f"unknown identity set {self.which!r}: 'all' or 'restoring'")
+        rows = self.rows(model)
         s2, eps = restoration(state, model, pilot)
         blk = state.blocks
         x, v = blk["x"], blk["v"]
         terms = model.drift_terms
-        rows = [j for j, t in enumerate(terms) if self.which == "all" or t.variable != "v"]
         L = state.layout
         first, nxt = state.block_edges
 
@@ -117,11 +116,20 @@ class Identities:
             const[:, a] = (G[nxt] - G[first]) / L.T - r
         return Q, const, e, ex, rows, s2
 
+    def rows(self, model: Model) -> list[int]:
+        """The drift terms whose identities are used."""
+        if self.which not in ("all", "restoring"):
+            raise ValueError(f"unknown identity set {self.which!r}: 'all' or 'restoring'")
+        return [j for j, t in enumerate(model.drift_terms) if self.which == "all" or
+                t.variable != "v"]  # fmt: skip
+
     def prepare(self, state: RecordState, model: Model, pilot: np.ndarray) -> Moments:
         """Block statistics of the identities (module docstring)."""
+        exc = Excitation(model, pilot, state.scales.sigma_v, state.scales.sigma_x)
+        if exc.whitening:
+            return self._whitened(state, model, pilot, exc)
         Q, const, e, ex, rows, s2 = self.statistics(state, model, pilot)
         terms = model.drift_terms
-        exc = Excitation(model, pilot, state.scales.sigma_v, state.scales.sigma_x)
         nd = model.n_drift
         Qm, cm, em, exm = Q.mean(0), const.mean(0), e.mean(0), ex.mean(0)
 
@@ -144,4 +152,51 @@ class Identities:
             mean=mean,
             influence=per_block - per_block.mean(axis=0),
             info={"velocity_restoration_s2": s2, "identities": list(labels)},
+        )
+
+    def _whitened(
+        self, state: RecordState, model: Model, pilot: np.ndarray, exc: Excitation
+    ) -> Moments:
+        """The identities of the augmented state (:mod:`hosid.components.jets`)."""
+        rows = [*self.rows(model), *EXTRA]
+        deficit = exc.jet_deficit(pilot, state.dt)
+        st = whitened_statistics(state, model, rows, deficit)
+        pairs = sorted(st["Q"])
+        Q = np.stack([st["Q"][k] for k in pairs])  # (P, B, J, p)
+        C = np.stack([st["C"][k] for k in pairs])  # (P, B, J)
+        e = st["e"]
+        Qm, Cm, em = Q.mean(axis=1), C.mean(axis=1), e.mean(axis=0)
+        nd = model.n_drift
+        spectrum = exc.spectrum
+
+        def weights(th):  # p_m p_n of every pair
+            p = spectrum.operator(th)
+            return np.stack([p[m] * p[n] for m, n in pairs], axis=-1)
+
+        def mean(theta):
+            th = np.asarray(theta, dtype=float)
+            W = weights(th)
+            out = np.einsum("...q,qj->...j", W, Cm)
+            out = out + np.einsum("...q,qjk,...k->...j", W, Qm, th[..., :nd])
+            return out - (np.pi * spectrum.S0(th))[..., None] * em
+
+        th0 = np.asarray(pilot, dtype=float)
+        W0 = weights(th0)
+        per_block = np.einsum("q,qbj->bj", W0, C)
+        per_block += np.einsum("q,qbjk,k->bj", W0, Q, th0[:nd])
+        per_block -= np.pi * float(spectrum.S0(th0)) * e
+        labels = tuple(
+            f"identity {j if isinstance(j, str) else model.drift_terms[j].params[0]}" for j in rows
+        )
+        return Moments(
+            component=self.name,
+            labels=labels,
+            mean=mean,
+            influence=per_block - per_block.mean(axis=0),
+            info={
+                "velocity_restoration_s2": float(deficit[1, 1]),
+                "jet_deficit": deficit.tolist(),
+                "identities": list(labels),
+                "whitening_order": len(spectrum.operator(th0)) - 1,
+            },
         )

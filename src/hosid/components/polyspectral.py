@@ -160,7 +160,7 @@ class J4:
         # directions and frozen per-block weights d_tbj
         dirs = list(damp) + ([exc.i_S0] if self.kind == "A" else [])
         if self.kind == "A":
-            dirs += [i for i, _ in exc.inverse_factors()]
+            dirs += list(exc.shape_indices)
         G0 = gauss(level(th0))
         d = np.empty((B, dom.shape[0], len(dirs)), dtype=complex)
         for a, i in enumerate(dirs):

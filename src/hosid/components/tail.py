@@ -66,14 +66,18 @@ from .excitation import Excitation
 
 __all__ = ["LOW", "TAIL_PARAMS", "Tail"]
 
-#: The model parameters the tail sees, with the label of their equation.
-TAIL_PARAMS = {"wc": "tail eta", "noise_sd": "tail noise"}
+#: The model parameters the tail sees: a low-pass corner, a noise floor.  (Not a shaping
+#: filter: under a force that falls as w^-4 the tail is the nonlinear response's harmonics,
+#: not the equivalent linear response: its equations sat 5-6 sd off at the truth.)
+TAIL_PARAMS = ("wc", "noise_sd")
 
 
 @dataclass(frozen=True)
 class Tail:
-    """The spectral-tail component (module docstring): one equation for each of
-    ``wc`` and ``noise_sd`` the model has.
+    r"""The spectral-tail component (module docstring): one equation for each
+    coefficient :math:`c_k` (:math:`k \ge 1`) of the force's :math:`1/L` outside a
+    band-limited force's own factor (``wc``: :math:`1/\omega_c^2`; a shaping filter:
+    :math:`\omega^2` and :math:`\omega^4`), and one for ``noise_sd``.
     """
 
     name: str = "tail"
@@ -85,11 +89,10 @@ class Tail:
         Raises
         ------
         ValueError
-            If the model has neither ``wc`` nor ``noise_sd``, or the band holds fewer
+            If the model has none of :data:`TAIL_PARAMS`, or the band holds fewer
             than :data:`MIN_BINS` bins.
         """
-        params = [p for p in TAIL_PARAMS if model.has(p)]
-        if not params:
+        if not any(model.has(p) for p in TAIL_PARAMS):
             raise ValueError("the tail component needs wc or noise_sd in the model")
         th0 = np.asarray(pilot, dtype=float)
         s, dt = state.scales, state.dt
@@ -109,22 +112,20 @@ class Tail:
             T = T * _band_factor(exc, np.sqrt(W2), th0)
         G = difference_gain(omega, dt)  # the floor's direction
 
-        i_wc = model.index("wc") if model.has("wc") else None
+        def coef(th):  # the free shape's 1/L coefficients c_1, c_2, ...
+            return exc.spectrum.inverse_poly(th, exclude=("band_limited_excitation",))[1:]
+
+        n_c = len(coef(th0))
         i_ns = model.index("noise_sd") if model.has("noise_sd") else None
         floor = dt / (2.0 * math.pi)
-
-        def eta(th):
-            if i_wc is None:
-                return np.zeros(np.shape(th)[:-1])
-            return np.asarray(th, dtype=float)[..., i_wc] ** -2.0
 
         def noise(th):
             if i_ns is None:
                 return np.zeros(np.shape(th)[:-1])
             return floor * np.asarray(th, dtype=float)[..., i_ns] ** 2
 
-        e0, N0 = float(eta(th0)), float(noise(th0))
-        L0 = 1.0 / (1.0 + e0 * W2)
+        c0, N0 = [float(c) for c in coef(th0)], float(noise(th0))
+        L0 = 1.0 / (1.0 + sum(c * W2 ** (k + 1) for k, c in enumerate(c0)))
         resp0 = np.sum(L0 * T, axis=1)  # (K,)
         Pbar = P.mean(axis=0)
         lam = max(float(exc.S0(th0)), 1e-300)
@@ -132,28 +133,36 @@ class Tail:
             S_t = lam * resp0 + G * N0
             lam *= np.sum(Pbar * resp0 / S_t**2) / np.sum(lam * resp0**2 / S_t**2)
         S_t = lam * resp0 + G * N0
-        dirs = {"wc": -lam * np.sum(W2 * L0**2 * T, axis=1), "noise_sd": G}
-        Q = np.stack(level_free([dirs[p] for p in params], lam * resp0, S_t))  # (E, K)
-        A = (Q[:, :, None] * T[None]).reshape(len(params), -1)  # the response, per alias
+        dirs = [-lam * np.sum(W2 ** (k + 1) * L0**2 * T, axis=1) for k in range(n_c)]
+        labels = ["tail eta"] if n_c == 1 else [f"tail c{k + 1}" for k in range(n_c)]
+        if i_ns is not None:
+            dirs.append(G)
+            labels.append("tail noise")
+        E = len(dirs)
+        Q = np.stack(level_free(dirs, lam * resp0, S_t))  # (E, K)
+        A = (Q[:, :, None] * T[None]).reshape(E, -1)  # the response, per alias
         bvec = Q @ G  # the noise floor
         W2f = W2.ravel()
         const = Q @ Pbar
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
-            et = eta(th)
-            flat = et.reshape(-1)
-            out = np.empty((flat.size, len(params)))
-            for s0 in range(0, flat.size, 256):  # chunks bound the memory
-                Lc = 1.0 / (1.0 + flat[s0 : s0 + 256, None] * W2f[None, :])
-                out[s0 : s0 + 256] = Lc @ A.T
-            resp = out.reshape(*et.shape, len(params))
+            shape = th.shape[:-1]
+            cs = [np.asarray(c, dtype=float).reshape(-1) for c in coef(th)]
+            n = int(np.prod(shape, dtype=int))
+            out = np.empty((n, E))
+            for s0 in range(0, n, 256):  # chunks bound the memory
+                den = np.ones((min(256, n - s0), W2f.size))
+                for k, c in enumerate(cs):
+                    den = den + c[s0 : s0 + 256, None] * W2f[None, :] ** (k + 1)
+                out[s0 : s0 + 256] = (1.0 / den) @ A.T
+            resp = out.reshape(*shape, E)
             return const - lam * resp - noise(th)[..., None] * bvec
 
         per_block = (P - S_t) @ Q.T  # (B, E)
         return Moments(
             component=self.name,
-            labels=tuple(TAIL_PARAMS[p] for p in params),
+            labels=tuple(labels),
             mean=mean,
             influence=per_block - per_block.mean(axis=0),
             info={
@@ -165,11 +174,9 @@ class Tail:
 
 
 def _band_factor(exc: Excitation, W: np.ndarray, th0: np.ndarray) -> np.ndarray:
-    """The band-limited force's in-band shape at the pilot (its low-pass factors but
-    the corner's), for the frequencies ``W``.
+    """The band-limited force's in-band shape at the pilot (its roll-off, not the
+    corner's), for the frequencies ``W``.
     """
-    out = np.ones_like(W)
-    for i, a in exc.inverse_factors():
-        if i != exc.i_wc:
-            out = out / (1.0 + W**2 * float(a(th0)))
-    return out * (np.abs(W) <= float(th0[exc.i_wb]))
+    wb = float(th0[exc.i_wb])
+    beta = float(th0[exc.i_rb]) if exc.i_rb is not None else 0.0
+    return (np.abs(W) <= wb) / (1.0 + beta * W**2 / wb**2)

@@ -41,10 +41,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..components.base import Component, restoration
+from ..components.cumulant import ForceKurtosis
 from ..components.identities import Identities
 from ..components.spectral import J2
 from ..components.tail import TAIL_PARAMS, Tail
 from ..errors import HosidInputError
+from ..model.excitation import Spectrum
 from ..model.model import Model
 from ..model.priors import LogUniform, PriorSet
 from ..record import Record
@@ -52,6 +54,7 @@ from ..screen import check_record, reject_failures
 from ..state import RecordState
 from ..verdicts import Check
 from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
+from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
 
 __all__ = [
@@ -105,7 +108,9 @@ def prepare_state(
 ) -> RecordState:
     """The record's state for ``model``: the displacement keeps its offset when the
     model has an asymmetric term (``b2`` or ``m``), which the offset informs, and is
-    Wiener-filtered when the model has measurement noise.
+    Wiener-filtered when the model has measurement noise; its derivatives run to the
+    jerk when the force goes through a shaping filter (the identities of
+    :mod:`hosid.components.jets`).
     """
     centred = not (model.has("b2") or model.has("m"))
     return RecordState.from_record(
@@ -114,6 +119,7 @@ def prepare_state(
         window=window,
         centred=centred,
         denoise=model.has("noise_sd"),
+        smooth=Spectrum(model).whitening,
     )
 
 
@@ -126,7 +132,13 @@ def excitation_for(
     notes = [state.spectrum.summary()]
     if state.repeat_note():
         notes.append(state.repeat_note())
-    if band_limit and state.spectrum.band_limited and not model.has("wb"):
+    whitening = Spectrum(model).whitening
+    if whitening and state.spectrum.band_limited:
+        notes.append(
+            "the acceleration spectrum falls off above the shaping filter's band: no "
+            "band-limited excitation added (the filter's shape is the model's)"
+        )
+    if band_limit and state.spectrum.band_limited and not model.has("wb") and not whitening:
         model = model.with_term("band_limited_excitation")
         notes.append(
             "the excitation stops below the Nyquist frequency: band_limited_excitation added "
@@ -170,7 +182,7 @@ def log_params(model: Model, priors: PriorSet | None = None) -> list[int]:
     names = model.param_names
     if priors is not None:
         return [i for i, n in enumerate(names) if isinstance(priors[n], LogUniform)]
-    return [i for i, n in enumerate(names) if n in ("S0", "wc")]
+    return [i for i, n in enumerate(names) if n in ("S0", "wc", "wf", "zf")]
 
 
 def typical_scale(model: Model, state: RecordState, theta: np.ndarray) -> np.ndarray:
@@ -225,23 +237,32 @@ def estimate(
     components = list(components or components_for())
     if any(model.has(p) for p in TAIL_PARAMS) and not any(isinstance(c, Tail) for c in components):
         components.append(Tail())  # the corner and the noise floor show in the tail
-    theta0 = pilot_estimate(state, model) if start is None else np.array(start, dtype=float)
-    theta = theta0.copy()
+    whitening = Spectrum(model).whitening
+    if whitening and not any(isinstance(c, ForceKurtosis) for c in components):
+        components.append(ForceKurtosis())  # a filter and its oscillator may swap
+    if start is not None:
+        starts = [np.array(start, dtype=float)]
+    elif whitening:  # the filter and the oscillator may swap: try each
+        starts = whitened_pilots(state, model, initial_theta(state, model))
+    else:
+        starts = [pilot_estimate(state, model)]
     logs = log_params(model)
     support = model.default_priors(state.scales, constrained=False)
     lower = np.array([support[n].lower for n in model.param_names])
     upper = np.array([support[n].upper for n in model.param_names])
-    for _ in range(rounds):
+    best, failure = None, None
+    for theta0 in starts:
         try:
-            moments = [c.prepare(state, model, theta) for c in components]
-            ql = quasi_likelihood(moments, n_params=len(theta))
-        except ValueError as exc:
-            raise HosidInputError(str(exc)) from None
-        scale = typical_scale(model, state, theta)
-        new = solve(ql, theta, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
-        if not np.all(np.isfinite(new)):
-            raise HosidInputError("the estimating equations have no finite solution")
-        theta = new
+            theta, ql = _solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
+        except HosidInputError as exc:  # another start may do (a white filter is degenerate)
+            failure = failure or exc
+            continue
+        J = float(-2.0 * ql(theta))
+        if best is None or J < best[0]:
+            best = (J, theta, ql, theta0)
+    if best is None:
+        raise failure
+    _, theta, ql, theta0 = best
     cov = ql.laplace(theta, typical_scale(model, state, theta))
     # a parameter the equations barely see (e.g. at a bound of its support) gets no more
     # spread than a quarter of its prior's width
@@ -254,6 +275,24 @@ def estimate(
     return Estimate(
         model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes
     )
+
+
+def _solve_rounds(state, model, components, theta, rounds, logs, lower, upper):
+    """``rounds`` of (prepare the equations at ``theta``, solve): the estimate and its
+    quasi-likelihood.
+    """
+    for _ in range(rounds):
+        try:
+            moments = [c.prepare(state, model, theta) for c in components]
+            ql = quasi_likelihood(moments, n_params=len(theta))
+        except ValueError as exc:
+            raise HosidInputError(str(exc)) from None
+        scale = typical_scale(model, state, theta)
+        new = solve(ql, theta, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
+        if not np.all(np.isfinite(new)):
+            raise HosidInputError("the estimating equations have no finite solution")
+        theta = new
+    return theta, ql
 
 
 def likelihood_map(est: Estimate, draws: np.ndarray, loglike=None, n: int = 61) -> dict | None:

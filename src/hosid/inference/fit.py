@@ -25,7 +25,7 @@ import xarray as xr
 
 from .. import __version__
 from ..components.base import Component
-from ..components.spectral import default_band
+from ..components.spectral import default_band, force_periodogram
 from ..errors import HosidInputError
 from ..model.model import Model
 from ..model.priors import PriorSet
@@ -226,7 +226,11 @@ def fit(
 
     lmap = likelihood_map(est, th.reshape(-1, len(names)), calibrated) if with_map else None
     bins = est.state.layout.bins(*(band or default_band(est.state)), k_min=1)
-    obs = {"omega": bins * est.state.layout.d_omega, "Sxx": est.state.periodogram("x", bins)}
+    obs = {
+        "omega": bins * est.state.layout.d_omega,
+        "Sxx": est.state.periodogram("x", bins),
+        "force": force_periodogram(est.state, model, cal.theta, bins),
+    }
     attrs: dict[str, Any] = {
         "created_at": datetime.now(UTC).isoformat(),
         "inference_library": "emcee",

@@ -21,12 +21,14 @@ import numpy as np
 from ..components.base import feature_ffts
 from ..components.excitation import Excitation
 from ..components.identities import Identities
+from ..components.jets import whitened_statistics
 from ..components.spectral import default_band
 from ..errors import HosidInputError
+from ..model.excitation import Spectrum
 from ..model.model import Model
 from ..state import RecordState
 
-__all__ = ["initial_theta", "pilot"]
+__all__ = ["initial_theta", "pilot", "whitened_pilots"]
 
 
 def initial_theta(state: RecordState, model: Model) -> np.ndarray:
@@ -40,6 +42,8 @@ def initial_theta(state: RecordState, model: Model) -> np.ndarray:
         "wc": 2.0 * s.omega_nyquist,
         "wb": 0.5 * sum(s.band_edge) if s.band_edge else s.omega_nyquist,
         "noise_sd": max(noise, 1e-3 * s.sigma_x),
+        "wf": 2.0 * s.omega_nyquist,
+        "zf": 0.7,
     }
     return np.array([start.get(p, 0.0) for p in model.param_names])
 
@@ -54,6 +58,8 @@ def pilot(state: RecordState, model: Model, theta: np.ndarray | None = None) -> 
         (the record does not look like a randomly excited oscillator of this model).
     """
     theta = initial_theta(state, model) if theta is None else np.array(theta, dtype=float)
+    if Spectrum(model).whitening:
+        return whitened_pilots(state, model, theta)[0]
     nd = model.n_drift
     L = state.layout
     bins = L.bins(*default_band(state), k_min=2)
@@ -96,3 +102,92 @@ def pilot(state: RecordState, model: Model, theta: np.ndarray | None = None) -> 
     if not np.all(np.isfinite(theta)):
         raise HosidInputError("the pilot estimate is not finite")
     return theta
+
+
+def _level(R: np.ndarray, Lk: np.ndarray, alpha: np.ndarray, beta: np.ndarray) -> float | None:
+    r"""The smallest positive :math:`D` with :math:`\frac1K\sum_k\lambda(D)^{\mathsf T}
+    R_k\lambda(D)/L_k = D/\pi` (module docstring), or ``None``.
+    """
+    l0 = np.concatenate([[1.0], alpha])
+    l1 = np.concatenate([[0.0], beta])
+    quad = [
+        np.mean(np.einsum("kij,i,j->k", R, u, w) / Lk) for u, w in ((l1, l1), (l0, l1), (l0, l0))
+    ]
+    roots = np.roots([quad[0], 2 * quad[1] - 1.0 / math.pi, quad[2]])
+    roots = roots.real if np.iscomplexobj(roots) else roots
+    roots = roots[roots > 0]
+    return float(roots.min()) if roots.size else None
+
+
+def whitened_pilots(
+    state: RecordState, model: Model, theta: np.ndarray, n_best: int = 3
+) -> list[np.ndarray]:
+    r"""Pilots of a model whose force goes through a shaping filter: over a grid of the
+    filter's :math:`(\omega_f, \zeta_f)` (:math:`\omega_n/4` to :math:`100\,\omega_N`,
+    0.02 to 2, log-spaced), the identities of the augmented state
+    (:mod:`hosid.components.jets`, unrestored) give :math:`\theta(D) = \alpha + \beta D`
+    and the level equation :math:`D`, as for a white force; the inferred force's
+    standardized periodogram :math:`\bar P_k/S_0L_k` should be flat on the J2 band (least
+    squares about 1).  The best points of the up to ``n_best`` deepest valleys of that
+    misfit along :math:`\omega_f` are returned, best first: a filter near the oscillator's
+    resonance can fit the spectrum with the two swapped, and the estimate keeps the
+    start whose equations agree best (:func:`hosid.inference.estimate.estimate`).
+
+    Raises
+    ------
+    HosidInputError
+        If no point of the grid gives a positive level.
+    """
+    spectrum = Spectrum(model)
+    nd = model.n_drift
+    M = spectrum.order
+    st = whitened_statistics(state, model, list(range(nd)), np.zeros((M + 2, M + 2)))
+    pairs = sorted(st["Q"])
+    Qm = np.stack([st["Q"][k].mean(axis=0) for k in pairs])
+    Cm = np.stack([st["C"][k].mean(axis=0) for k in pairs])
+    em = st["e"].mean(axis=0)
+    L = state.layout
+    bins = L.bins(*default_band(state), k_min=2)
+    omega = bins * L.d_omega
+    Y = feature_ffts(state, model, 0.0, bins)
+    R = np.einsum("ibk,jbk->kij", Y, Y.conj()).real / (L.B * 2 * math.pi * L.T * state.window.k2)
+    s = state.scales
+    i_wf, i_zf, i_S0 = model.index("wf"), model.index("zf"), model.index("S0")
+    wfs = np.geomspace(0.25 * s.omega_n, 100.0 * s.omega_nyquist, 48)
+    zfs = np.geomspace(0.02, 2.0, 16)
+    cost = np.full((wfs.size, zfs.size), np.inf)
+    found = {}
+    for a, wf in enumerate(wfs):
+        for b, zf in enumerate(zfs):
+            th = theta.copy()
+            th[i_wf], th[i_zf] = wf, zf
+            p = [float(c) for c in spectrum.operator(th)]
+            Wp = np.array([p[m] * p[n] for m, n in pairs])
+            try:
+                alpha = np.linalg.solve(np.einsum("q,qjk->jk", Wp, Qm), -(Wp @ Cm))
+                beta = np.linalg.solve(np.einsum("q,qjk->jk", Wp, Qm), em)
+            except np.linalg.LinAlgError:
+                continue
+            Lk = spectrum.shape(omega, th)
+            D = _level(R, Lk, alpha, beta)
+            if D is None:
+                continue
+            lam = np.concatenate([[1.0], alpha + beta * D])
+            h = np.einsum("kij,i,j->k", R, lam, lam) / (D / math.pi * Lk) - 1.0
+            cost[a, b] = float(np.sum(h**2))
+            th[:nd], th[i_S0] = lam[1:], D / math.pi
+            found[a, b] = th
+    if not found:
+        raise HosidInputError(
+            "no positive excitation level explains the record's force spectrum through a "
+            "shaping filter: the record does not look like a randomly excited oscillator "
+            "of this model"
+        )
+    profile = cost.min(axis=1)
+    padded = np.concatenate([[np.inf], profile, [np.inf]])
+    valleys = [
+        a for a in range(wfs.size)
+        if np.isfinite(profile[a]) and profile[a] <= padded[a] and profile[a] <= padded[a + 2]
+    ]  # fmt: skip
+    valleys.sort(key=lambda a: profile[a])
+    return [found[a, int(np.argmin(cost[a]))] for a in valleys[:n_best]]

@@ -107,6 +107,12 @@ class DriftTerm(Term):
         """
         return self.phi(u, order, eps)
 
+    def smooth_test(self, u: np.ndarray, order: int = 0, scale: float = 1.0) -> np.ndarray:
+        r"""A test function with three bounded derivatives (the identities of a coloured
+        force differentiate it in time): :meth:`test` unless a term's has kinks.
+        """
+        return self.test(u, order, 0.0, scale)
+
     def test_antiderivative(self, u: np.ndarray, scale: float = 1.0) -> np.ndarray:
         r""":math:`\int_0^u\psi` (the boundary term :math:`G` of a velocity identity)."""
         return self.antiderivative(u)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import HosidInputError
+from .excitation import Spectrum
 from .priors import PriorSet
 from .terms import CANDIDATES, TERMS, DriftTerm, Scales, Term
 
@@ -74,6 +75,10 @@ class Model:
             raise HosidInputError("the model needs a restoring term (e.g. linear_stiffness)")
         if not any(t.variable == "v" for t in self.drift_terms):
             raise HosidInputError("the model needs a damping term (e.g. linear_damping)")
+        try:
+            Spectrum(self)
+        except ValueError as exc:
+            raise HosidInputError(str(exc)) from None
 
     @classmethod
     def from_spec(cls, spec: str | Iterable[str] | Model) -> Model:
@@ -147,9 +152,14 @@ class Model:
     @property
     def candidates(self) -> tuple[str, ...]:
         """Candidate effects not yet in the model (a band-limited excitation's roll-off
-        is already a coloured excitation's low-pass).
+        and a shaping filter already hold a coloured excitation's low-pass; a whitening
+        filter is not combined with another shape).
         """
-        taken = set(self.names) | ({"coloured_excitation"} if self.has("wb") else set())
+        taken = set(self.names)
+        if self.has("wb") or self.has("wf"):  # a band's roll-off, a filter: a low-pass
+            taken.add("coloured_excitation")
+        if any(self.has(p) for p in ("wb", "wc")):  # one whitening shape alone
+            taken.add("narrowband_excitation")
         return tuple(c for c in CANDIDATES if c not in taken)
 
     def latex(self) -> str:

@@ -14,7 +14,10 @@ With a band edge :math:`\omega_b > 0` the force is Gaussian with the spectrum
 :math:`S_0L(\omega)\mathbf 1\{|\omega| \le \omega_b\}/(1 + \beta\omega^2/\omega_b^2)`
 (the low-pass's :math:`L`, or 1; :math:`\beta` the band's ``rolloff``, default 0):
 white noise on the sub-step grid shaped once by an FFT of the whole run, then integrated
-as a smooth input (Heun with the force at both ends of a sub-step).
+as a smooth input (Heun with the force at both ends of a sub-step).  A second-order
+shaping filter (``wf``, ``zf``: :math:`S_0\omega_f^4/[(\omega_f^2 - \omega^2)^2 +
+(2\zeta_f\omega_f\omega)^2]`, a narrow-band wave moment) is made the same way, on 40
+sub-steps a sample.
 Measurement noise (white, standard deviation ``noise_sd``) is added to the sampled
 displacement only.
 
@@ -52,6 +55,8 @@ __all__ = [
     "SIM_KEYS",
     "band_limited_force",
     "equivalent_rate",
+    "narrowband_shape",
+    "shaped_force",
     "simulate",
     "simulate_ensemble",
 ]
@@ -61,7 +66,7 @@ PAPER_PARAMS: dict[str, float] = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "
 
 #: Drift coefficients in the order of the compiled kernel, then the other keys.
 _DRIFT_KEYS = ("a1", "n1", "a2", "n2", "b2", "mu", "m")
-SIM_KEYS = (*_DRIFT_KEYS, "S0", "wc", "wb", "rolloff", "noise_sd")
+SIM_KEYS = (*_DRIFT_KEYS, "S0", "wc", "wb", "rolloff", "wf", "zf", "noise_sd")
 
 
 @numba.njit(cache=True, inline="always")
@@ -129,6 +134,16 @@ def _heun_forced(f, n_out, sub, h, c, burn, xs, vs):  # pragma: no cover - compi
             vs[i - burn] = v
 
 
+def shaped_force(n: int, h: float, S0: float, shape, rng: np.random.Generator) -> np.ndarray:
+    r"""``n`` samples at step ``h`` of a stationary Gaussian force of two-sided spectrum
+    :math:`S_0L(\omega)` (``shape`` is :math:`L`, a function of an array of frequencies):
+    white noise on the grid shaped once by an FFT of the whole run.
+    """
+    w = rng.standard_normal(n) * math.sqrt(2.0 * math.pi * S0 / h)
+    omega = 2.0 * math.pi * np.fft.rfftfreq(n, h)
+    return np.fft.irfft(np.fft.rfft(w) * np.sqrt(shape(omega)), n)
+
+
 def band_limited_force(
     n: int,
     h: float,
@@ -142,11 +157,19 @@ def band_limited_force(
     :math:`S_0L(\omega)\mathbf 1\{|\omega| \le \omega_b\}/(1 + \beta\omega^2/\omega_b^2)`
     (module docstring).
     """
-    w = rng.standard_normal(n) * math.sqrt(2.0 * math.pi * S0 / h)
-    omega = 2.0 * math.pi * np.fft.rfftfreq(n, h)
-    gain = (omega <= wb) * (wc / np.sqrt(wc**2 + omega**2) if wc > 0 else 1.0)
-    gain = gain / np.sqrt(1.0 + rolloff * (omega / wb) ** 2)
-    return np.fft.irfft(np.fft.rfft(w) * gain, n)
+
+    def shape(omega):
+        low = wc**2 / (wc**2 + omega**2) if wc > 0 else 1.0
+        return (omega <= wb) * low / (1.0 + rolloff * (omega / wb) ** 2)
+
+    return shaped_force(n, h, S0, shape, rng)
+
+
+def narrowband_shape(wf: float, zf: float):
+    r"""The shaping filter's :math:`L(\omega) = \omega_f^4/[(\omega_f^2 - \omega^2)^2 +
+    (2\zeta_f\omega_f\omega)^2]` (:class:`hosid.model.excitation.NarrowbandExcitation`).
+    """
+    return lambda omega: wf**4 / ((wf**2 - omega**2) ** 2 + (2.0 * zf * wf * omega) ** 2)
 
 
 def equivalent_rate(params: Mapping[str, float]) -> float:
@@ -168,7 +191,7 @@ def equivalent_rate(params: Mapping[str, float]) -> float:
     return a1 + n1 * c8 * s + mu * c2 / s
 
 
-def _check(params: Mapping[str, float], duration: float, dt: float, substeps: int) -> None:
+def _check(params: Mapping[str, float], duration: float, dt: float, substeps) -> None:
     unknown = set(params) - set(SIM_KEYS)
     if unknown:
         raise HosidInputError(
@@ -193,8 +216,13 @@ def _check(params: Mapping[str, float], duration: float, dt: float, substeps: in
         )
     if values.get("a2", 0.0) <= 0 and values.get("n2", 0.0) <= 0:
         raise HosidInputError("the oscillator needs a restoring force: a2 > 0 or n2 > 0")
-    if int(substeps) < 1:
+    if substeps is not None and int(substeps) < 1:
         raise HosidInputError("substeps must be at least 1")
+    wf, zf = values.get("wf", 0.0), values.get("zf", 0.0)
+    if (wf > 0) != (zf > 0) or wf < 0 or zf < 0:
+        raise HosidInputError("a shaping filter needs both wf > 0 and zf > 0")
+    if wf > 0 and (values.get("wc", 0.0) > 0 or values.get("wb", 0.0) > 0):
+        raise HosidInputError("a shaping filter (wf, zf) cannot be combined with wc or wb")
     w = natural_frequency(values)
     limit = float(THRESHOLDS["sampling"][1])  # where the record check fails omega_e / omega_N
     if w * dt / math.pi > limit:
@@ -228,7 +256,7 @@ def simulate(
     duration: float = 2000.0,
     dt: float = 0.02,
     rng: np.random.Generator,
-    substeps: int = 10,
+    substeps: int | None = None,
     burn_in: float | None = None,
     name: str = "",
     return_velocity: bool = False,
@@ -246,8 +274,11 @@ def simulate(
         Record length and sampling interval (s).
     rng : numpy.random.Generator
         The only source of randomness.
-    substeps : int
-        Heun steps per sample.
+    substeps : int, optional
+        Heun steps per sample: 10, or 40 under a shaping filter (with 10, the
+        ship-roll-like oscillator's cubic stiffness came out 3 % low, 11 sd of the
+        estimates of 8 records, in the identities of the augmented state, which weigh the
+        jerk).
     burn_in : float, optional
         Seconds simulated from rest and discarded; default the larger of 60 s and 30
         decay times :math:`30/a_{1eq}` (at most 20 000 s).
@@ -271,12 +302,19 @@ def simulate(
         burn_in = min(max(60.0, 30.0 / rate), 20000.0) if rate > 0 else 60.0
     n_out = round(duration / dt)
     burn = round(burn_in / dt)
-    sub = int(substeps)
+    sub = int(substeps) if substeps else 10
     h = dt / sub
     xs = np.empty(n_out)
     vs = np.empty(n_out)
     wb = float(params.get("wb", 0.0) or 0.0)
-    if wb > 0:
+    wf = float(params.get("wf", 0.0) or 0.0)
+    if wf > 0:
+        sub = int(substeps) if substeps else 40
+        h = dt / sub
+        shape = narrowband_shape(wf, float(params["zf"]))
+        f = shaped_force((burn + n_out) * sub + 1, h, S0, shape, rng)
+        _heun_forced(f, n_out, sub, h, c, burn, xs, vs)
+    elif wb > 0:
         rolloff = float(params.get("rolloff", 0.0) or 0.0)
         f = band_limited_force((burn + n_out) * sub + 1, h, S0, wb, wc, rng, rolloff)
         _heun_forced(f, n_out, sub, h, c, burn, xs, vs)

@@ -29,7 +29,6 @@ __all__ = [
     "length_unit",
     "likelihood_map_plot",
     "restoring_force_plot",
-    "spectrum_plot",
     "trace_plot",
     "unit",
 ]
@@ -51,6 +50,8 @@ _VARIABLES = {
     "mu": (r"\mu", "{u}/s²"),
     "m": ("m", "{u}/s²"),
     "wc": (r"\omega_c", "rad/s"),
+    "wf": (r"\omega_f", "rad/s"),
+    "zf": (r"\zeta_f", ""),
     "noise_sd": (r"\sigma_\epsilon", "{u}"),
     "lp": (r"\log p", ""),
 }
@@ -335,50 +336,4 @@ def trace_plot(tree: xr.DataTree, *, max_walkers: int = 6) -> Figure:
     axes[0].set_title(
         f"Traces of {len(chains)} of {n_chain} walkers\n{fit_title(tree)}", fontsize=9
     )
-    return fig
-
-
-def spectrum_plot(tree: xr.DataTree) -> Figure:
-    r"""The record's displacement spectrum and the fit's linear-equivalent prediction.
-
-    The prediction is
-
-    .. math:: S_{xx}(\omega) \approx \frac{S_0}{(a_{2eq} - \omega^2)^2 +
-              a_{1eq}^2\omega^2}, \qquad a_{2eq} = \sigma_{\dot x}^2 / \sigma_x^2,
-
-    at the posterior medians of :math:`S_0` and :math:`a_{1eq}` (times
-    :math:`\omega_c^2/(\omega_c^2 + \omega^2)` with coloured excitation), with the
-    fit's ``sigma_v`` and the record's ``sigma_x``.
-
-    Parameters
-    ----------
-    tree : xarray.DataTree
-        A fit (:mod:`hosid.output.results`).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        One axes, logarithmic in the spectrum.
-    """
-    obs = tree["observed_data"]
-    omega = np.asarray(obs["omega"].values, dtype=float)
-    sxx = np.asarray(obs["Sxx"].values, dtype=float)
-    length = length_unit(tree)
-    fig, ax = _axes(tree, "Displacement spectrum")
-    ax.plot(omega, sxx, color="0.4", linewidth=0.8, label="record (block average)")
-    post = tree["posterior"].data_vars
-    state = attr(tree, "state") or {}
-    sigma_v = attr(tree, "sigma_v", state.get("sigma_v"))
-    if "S0" in post and "a1eq" in post and sigma_v is not None:
-        a2eq = float(sigma_v) ** 2 / _sigma_x(tree) ** 2
-        s0, a1eq = (float(np.median(_draws(tree, p))) for p in ("S0", "a1eq"))
-        model = s0 / ((a2eq - omega**2) ** 2 + a1eq**2 * omega**2)
-        if "wc" in post:
-            wc = float(np.median(_draws(tree, "wc")))
-            model = model * wc**2 / (wc**2 + omega**2)
-        ax.plot(omega, model, color="C3", label="linear equivalent, posterior median")
-    ax.set_yscale("log")
-    ax.set_xlabel(r"$\omega$ (rad/s)")
-    ax.set_ylabel(rf"$S_{{xx}}(\omega)$ ({length}² s)")
-    ax.legend(loc="best", fontsize=8)
     return fig

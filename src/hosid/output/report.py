@@ -19,7 +19,7 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from ..model.model import Model
-from . import plots
+from . import plots, spectrum_plots
 from .files import b64, make_dir, png, render, write_atomic
 from .results import ESS_MIN, RHAT_MAX, attr, jsonable, summarize
 
@@ -43,7 +43,8 @@ _PLOTS: dict[str, Callable[[xr.DataTree], Figure | None]] = {
     "likelihood_map": plots.likelihood_map_plot,
     "restoring_force": plots.restoring_force_plot,
     "trace": plots.trace_plot,
-    "spectrum": plots.spectrum_plot,
+    "spectrum": spectrum_plots.spectrum_plot,
+    "force_spectrum": spectrum_plots.force_spectrum_plot,
 }
 
 #: Caption of each figure, by file stem.
@@ -58,6 +59,9 @@ CAPTIONS = {
     "trace": "Traces of a few walkers and of the log quasi-posterior, to judge mixing.",
     "spectrum": "The record's displacement spectrum and the linear-equivalent oscillator "
     "at the posterior median (a2eq = sigma_v^2 / sigma_x^2).",
+    "force_spectrum": "The force inferred from the record at the estimate (eq 45) against "
+    "the excitation model S0 L(omega): posterior median and 5-95 % band.  Where they part, "
+    "the excitation model does not describe the record.",
 }
 
 # the drift terms as they read in the equation of motion

@@ -14,7 +14,8 @@ Groups (``posterior.nc`` holds the same):
 ``prior``
     Draws from the priors, constraints applied.
 ``observed_data``
-    ``omega`` and the record's displacement spectrum ``Sxx`` on the fitted band.
+    ``omega``, the record's displacement spectrum ``Sxx`` on the fitted band and the
+    periodogram of the force inferred at the estimate, ``force`` (eq 45).
 ``constant_data``
     ``theta_hat`` (the mode) and ``laplace_cov`` (the calibrated curvature's inverse).
 ``likelihood_map`` (optional)

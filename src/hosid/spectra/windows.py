@@ -88,6 +88,15 @@ def _rho(name: str, m: int) -> np.ndarray:
     return F
 
 
+@lru_cache(maxsize=32)
+def _kernel(name: str, m: int, oversample: int, reach: int) -> tuple[np.ndarray, np.ndarray]:
+    D = _samples(name, m)
+    power = np.abs(np.fft.fft(D, m * oversample)) ** 2
+    j = np.arange(-reach * oversample, reach * oversample + 1)
+    weights = power[j % power.size]
+    return j / oversample, weights / weights.sum()
+
+
 @dataclass(frozen=True)
 class Window:
     """A named data window (``"hann"`` or ``"boxcar"``)."""
@@ -117,6 +126,16 @@ class Window:
         :math:`\frac{T}{2\pi}k_2^2\rho(k)^2`.
         """
         return T / (2.0 * np.pi) * self.k2**2 * self.rho(k, m) ** 2
+
+    def kernel(self, m: int, oversample: int = 8, reach: int = 8) -> tuple[np.ndarray, ...]:
+        r"""The spectral window of a block periodogram: bin offsets :math:`\delta_j`
+        (``reach`` bins either side, ``oversample`` points a bin) and weights
+        :math:`K_j \propto |\sum_nD_ne^{-2\pi i\delta_jn/m}|^2` summing to 1, so that a
+        process of spectrum :math:`S` has :math:`E[P_k] \approx \sum_jK_jS(\omega_k +
+        \delta_j\Delta\omega)` (beyond 8 bins the Hann window leaves :math:`10^{-5}` of
+        its power, the boxcar 2.5 %).
+        """
+        return _kernel(self.name, int(m), int(oversample), int(reach))
 
     def delta_T(self, omega: np.ndarray, T: float) -> np.ndarray:
         r"""Eq (25) for the continuous window: analytic for the boxcar (eq 26) and
