@@ -26,13 +26,15 @@ from hosid.model import (
     simulate,
 )
 
-#: NOTES.md, "Candidate effects (shared vocabulary)", spelled exactly so.
+#: NOTES.md, "Candidate effects (shared vocabulary)", spelled exactly so; issue 29
+#: adds the narrow-band excitation (its interface names it so).
 NOTES_CANDIDATES = (
     "quadratic_damping",
     "cubic_stiffness",
     "quadratic_stiffness",
     "coulomb_friction",
     "coloured_excitation",
+    "narrowband_excitation",
     "excitation_mean",
     "measurement_noise",
 )

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from hosid.check.evidence import weigh
 from hosid.components.identities import Identities
 from hosid.components.jets import time_derivatives
 from hosid.errors import HosidInputError
@@ -16,6 +17,7 @@ from hosid.model import Model
 from hosid.model.excitation import Spectrum, squared_modulus
 from hosid.model.simulate import narrowband_shape, simulate
 from hosid.spectra.derivatives import jet_deficit, smooth_derivatives, velocity_deficit
+from hosid.state import RecordState
 
 NB = "paper,narrowband_excitation"
 
@@ -173,3 +175,28 @@ def test_estimate_with_the_matching_filter():
     for k, v in truth.items():
         assert abs(est.values[k] - v) < 3.5 * est.sd[k], k
     assert est.test["p_value"] > 0.001
+
+
+def test_a_filtered_force_rolls_off_where_a_band_stops():
+    """The acceleration spectrum under a shaping filter falls as w^-4 (and the nonlinear
+    response's harmonics make shoulders): not a band's edge; a band-limited force, flat
+    or rolled off within its band, ends in a cliff.
+    """
+    base = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0}
+    for extra, edge in (({"wf": 7.0, "zf": 0.2}, False), ({"wb": 30.0, "rolloff": 9.0}, True)):
+        rec = simulate({**base, **extra}, duration=1000.0, dt=0.02, rng=np.random.default_rng(2))
+        spectrum = RecordState.from_record(rec).spectrum
+        assert (spectrum.edge is not None) == edge, extra
+        if edge:
+            assert spectrum.edge[0] <= 30.0 <= spectrum.edge[1] * 1.01
+
+
+def test_diagnose_weighs_a_narrowband_force_against_the_white_model():
+    truth = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
+    rec = simulate(truth, duration=2000.0, dt=0.02, rng=np.random.default_rng(3))
+    base = estimate(rec, "paper")
+    assert base.model.names == Model.from_spec("paper").names  # no band edge added
+    ev = weigh(rec, base.model, "narrowband_excitation", start=base.values)
+    assert ev.z > 10 and ev.p_value < 1e-6 and ev.coordinate.df == 2
+    assert ev.estimate["wf"] == pytest.approx(7.0, rel=0.05)
+    assert ev.estimate["zf"] == pytest.approx(0.2, rel=0.2)

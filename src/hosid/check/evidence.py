@@ -80,22 +80,15 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..components.base import Component
-from ..components.tail import TAIL_PARAMS, Tail
 from ..errors import HosidInputError
 from ..inference.calibrate import HANSEN_P
-from ..inference.estimate import (
-    components_for,
-    estimate,
-    log_params,
-    prepare_state,
-    typical_scale,
-)
+from ..inference.estimate import estimate, log_params, typical_scale
 from ..inference.gmm import BlockCovariance, Transformed, j_difference, quasi_likelihood, solve
+from ..model.excitation import Spectrum
 from ..model.model import Model, get_term
 from ..record import Record
-from ..state import RecordState
 from .coordinates import COORDINATES, WHITE_CORNER, Coordinate, critical_z, param_sd
+from .equations import components_for_test, null_moments, null_theta, record_state
 
 __all__ = [  # the coordinates are re-exported: the evidence is where users look for them
     "COORDINATES",
@@ -164,47 +157,6 @@ class Evidence:
         }
 
 
-def components_for_test(model: Model, effect: str) -> list[Component]:
-    """The components that weigh ``effect`` against ``model``: those of the default fit
-    (:func:`hosid.inference.estimate.components_for`), with the spectral tail
-    (:class:`hosid.components.tail.Tail`) when the extended model has a corner or
-    measurement noise, as the default fit of that model has.
-    """
-    comps = components_for()
-    if any(model.with_term(effect).has(p) for p in TAIL_PARAMS):
-        comps.append(Tail())
-    return comps
-
-
-def _state(record, model, states) -> RecordState:
-    key = (not (model.has("b2") or model.has("m")), model.has("noise_sd"))
-    if states is None:
-        return prepare_state(record, model)
-    if key not in states:
-        states[key] = prepare_state(record, model)
-    return states[key]
-
-
-def null_moments(
-    record: Record, model: Model, effect: str, start: Mapping[str, float], states=None
-) -> list:
-    """The equations that weigh ``effect`` against ``model`` (:func:`components_for_test`),
-    prepared on ``record`` at ``start`` with the effect at its null: the first
-    preparation of :func:`weigh`.
-    """
-    ext = model.with_term(effect)
-    theta = _null_theta(ext, COORDINATES[effect], start)
-    state = _state(record, ext, states)
-    return [c.prepare(state, ext, theta) for c in components_for_test(model, effect)]
-
-
-def _null_theta(ext: Model, coord: Coordinate, start: Mapping[str, float]) -> np.ndarray:
-    """``start`` in the extended model's parameters, the effect at its null."""
-    null_value = float(coord.to_param(0.0))
-    return np.array([start.get(n, null_value) if n != coord.param else null_value
-                     for n in ext.param_names])  # fmt: skip
-
-
 def weigh(
     record: Record,
     model: Model | str,
@@ -252,7 +204,7 @@ def weigh(
         raise HosidInputError(f"{effect} is not a candidate effect")
     coord = COORDINATES[effect]
     ext = model.with_term(effect)
-    state = _state(record, ext, states)
+    state = record_state(record, ext, states)
     comps = components_for_test(model, effect)
     names = ext.param_names
     i = ext.index(coord.param)
@@ -268,7 +220,7 @@ def weigh(
         th[..., i] = coord.to_param(u[..., i])
         return th
 
-    theta = _null_theta(ext, coord, start)
+    theta = null_theta(ext, coord, start)
     u = theta.copy()
     u[i] = 0.0
     free = [k for k in range(len(names)) if k != i]
@@ -298,6 +250,12 @@ def weigh(
         scale[i] = _own_sd(Transformed.of(null, to_theta), u, i, scale[i])
         if coord.kind == "inverse_square":  # start coloured, as the fit does
             u[i] = support[coord.param].upper ** -2.0
+        if Spectrum(ext).whitening:  # a filter's peak: the fit's multi-start estimate
+            found = estimate(state, ext, comps)
+            u, ql, rounds = found.theta.copy(), found.ql, 0
+            u[i] = coord.to_u(found.theta[i])
+            qlu = Transformed.of(ql, to_theta)
+            J0, _ = null_fit(ql, u[free])
         for _ in range(rounds):
             if u[i] != 0.0:  # the equations and their weight at the current estimate
                 ql = quasi_likelihood(
@@ -320,7 +278,8 @@ def weigh(
     cov = qlu.laplace(u, scale) * disp
     sd_u = np.sqrt(np.maximum(np.diag(cov), 0.0))
     z = float(u[i] / sd_u[i]) if u[i] != 0.0 and sd_u[i] > 0 else 0.0
-    test = j_difference(J0, J, boundary=coord.boundary, dispersion=disp)
+    test = j_difference(J0, J, df=coord.df, boundary=coord.boundary and coord.df == 1,
+                        dispersion=disp)  # fmt: skip
     theta = to_theta(u)
     sd_theta = dict(zip(names, sd_u.tolist(), strict=True))
     sd_theta[coord.param] = param_sd(coord, float(u[i]), float(sd_u[i]))

@@ -134,13 +134,14 @@ def _block_means(M: int, kinds, rk, tests, features, jet: dict) -> dict:
     Dphi = [time_derivatives(f, k, jet, M) for f, k in zip(phi, kinds, strict=True)]
     acc = [jet["a"], jet["j"]]
     y = acc[M - 1]
+    Mb = jet["x"].shape[1]
+    # (order, B, rows, samples) @ (order, B, samples, columns): batched products
+    P = np.stack([np.stack([dp[m] for dp in Dpsi], 1) for m in range(M + 1)])
+    F = np.stack([np.stack([df[n] for df in Dphi], 2) for n in range(M + 1)])
     Q, C = {}, {}
     for m in range(M + 1):
         for n in range(M + 1):
-            Q[m, n] = np.stack(
-                [np.stack([(dp[m] * df[n]).mean(axis=1) for df in Dphi], -1) for dp in Dpsi],
-                1,
-            )
+            Q[m, n] = np.matmul(P[m], F[n]) / Mb
             cols = []
             for dp, f, kind in zip(Dpsi, psi, rk, strict=True):
                 if n < M:
@@ -218,7 +219,7 @@ def whitened_statistics(
     size = np.array([max(float(np.std(base[key])), 1e-300) for key in keys])
     lam, U = np.linalg.eigh(deficit / np.outer(size, size))
     for li, ui in zip(lam, U.T, strict=True):
-        if abs(li) <= 1e-7:  # a loss below 1e-7 of the variables' variances
+        if abs(li) <= 1e-5:  # a loss below 1e-5 of the variables' variances
             continue
         h = math.sqrt(3.0 * abs(li))
         sides = []

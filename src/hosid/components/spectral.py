@@ -112,26 +112,24 @@ class J2:
 
         level0 = exc.S0(th0) * seen(th0)  # (K,)
         P0 = np.einsum("bkij,i,j->bk", R, lam0, lam0) / level0  # h + 1
-        # directions: drift coefficients, S0, the shape parameters (d h / d theta_i =
-        # -(h + 1) d log L / d theta_i)
-        shape_dirs = {}
-        for i in exc.shape_indices:
-            h = 1e-6 * max(abs(th0[i]), 1e-3)
-            up, dn = th0.copy(), th0.copy()
-            up[i] += h
-            dn[i] -= h
-            shape_dirs[i] = (np.log(seen(up)) - np.log(seen(dn))) / (2.0 * h)
-        dirs = [*range(nd), exc.i_S0, *shape_dirs]
+        # directions: drift coefficients, S0, and the coefficients c_k (k >= 1) of the
+        # shape's 1/L (d h / d c_k = -(h + 1) d log Lbar / d c_k; regular at a white
+        # force, where the shape's own parameters give collinear directions)
+        n_c = len(exc.spectrum.inverse_poly(th0)) - 1
+        Lnear = exc.lowpass(near, th0) if n_c else None
+        shape_dirs = [
+            -((near ** (2 * k) * Lnear**2) @ weights) / seen(th0) for k in range(1, n_c + 1)
+        ]
         names = model.param_names
-        w = np.empty((B, K, len(dirs)))
+        labels = [f"J2 d/d{names[i]}" for i in (*range(nd), exc.i_S0)]
+        labels += [f"J2 d/dc{k}" for k in range(1, n_c + 1)]
+        w = np.empty((B, K, nd + 1 + n_c))
         RL = np.einsum("bkij,j->bki", R, lam0)
-        for a, i in enumerate(dirs):
-            if i < nd:
-                w[:, :, a] = 2.0 * RL[:, :, i + 1] / level0
-            elif i == exc.i_S0:
-                w[:, :, a] = -P0 / exc.S0(th0)
-            else:
-                w[:, :, a] = -P0 * shape_dirs[i]
+        for a in range(nd):
+            w[:, :, a] = 2.0 * RL[:, :, a + 1] / level0
+        w[:, :, nd] = -P0 / exc.S0(th0)
+        for k, d in enumerate(shape_dirs):
+            w[:, :, nd + 1 + k] = -P0 * d
         if self.form == "printed":
             w = w * (level0**2)[None, :, None]
         wbar = w.mean(axis=0)  # (K, J)
@@ -158,7 +156,7 @@ class J2:
         u = u_pseudovalues(w / K, P0 - 1.0)
         return Moments(
             component=self.name,
-            labels=tuple(f"J2 d/d{names[i]}" for i in dirs),
+            labels=tuple(labels),
             mean=mean,
             influence=u - u.mean(axis=0),
             info={

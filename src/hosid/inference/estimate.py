@@ -161,6 +161,10 @@ class Estimate:
     pilot: np.ndarray
     checks: list[Check] = field(default_factory=list)  # hosid.screen
     notes: list[str] = field(default_factory=list)
+    #: other solutions of the equations from other starts that the best one's
+    #: quasi-likelihood does not rule out (a filter and its oscillator swapped): the
+    #: sampler starts walkers there too
+    alternatives: list[np.ndarray] = field(default_factory=list)
 
     @property
     def values(self) -> dict[str, float]:
@@ -250,7 +254,7 @@ def estimate(
     support = model.default_priors(state.scales, constrained=False)
     lower = np.array([support[n].lower for n in model.param_names])
     upper = np.array([support[n].upper for n in model.param_names])
-    best, failure = None, None
+    best, failure, solutions = None, None, []
     for theta0 in starts:
         try:
             theta, ql = _solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
@@ -258,11 +262,12 @@ def estimate(
             failure = failure or exc
             continue
         J = float(-2.0 * ql(theta))
+        solutions.append(theta)
         if best is None or J < best[0]:
             best = (J, theta, ql, theta0)
     if best is None:
         raise failure
-    _, theta, ql, theta0 = best
+    J_best, theta, ql, theta0 = best
     cov = ql.laplace(theta, typical_scale(model, state, theta))
     # a parameter the equations barely see (e.g. at a bound of its support) gets no more
     # spread than a quarter of its prior's width
@@ -272,9 +277,26 @@ def estimate(
     cov = cov * np.outer(f, f)
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
+    others = _alternatives(ql, theta, solutions, cov, J_best)
     return Estimate(
-        model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes
+        model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others
     )
+
+
+def _alternatives(ql, theta, solutions, cov, J_best, gap: float = 9.21) -> list[np.ndarray]:
+    r"""The solutions more than 3 sd (:math:`\chi^2` of the Laplace covariance) from
+    ``theta`` whose quasi-likelihood under the best solution's weight is within ``gap``
+    (the 99 % point of :math:`\chi^2_2`) of its minimum, distinct among themselves.
+    """
+    out: list[np.ndarray] = []
+    prec = np.linalg.pinv(cov)
+    for th in solutions:
+        d = th - theta
+        far = float(d @ prec @ d) > 9.0 * th.size
+        if far and float(-2.0 * ql(th)) - J_best < gap:
+            if all(float((th - o) @ prec @ (th - o)) > 9.0 * th.size for o in out):
+                out.append(th)
+    return out
 
 
 def _solve_rounds(state, model, components, theta, rounds, logs, lower, upper):

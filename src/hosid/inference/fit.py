@@ -177,8 +177,9 @@ def fit(
         raise HosidInputError(
             "the twin mode is inadmissible (eq-65 constraint): use constrained=False"
         )
+    alternatives = [t for t in est.alternatives if np.isfinite(log_prob(t[None])[0, 0])]
     modes = {
-        "auto": [cal.theta, twin] if twin_ok else [cal.theta],
+        "auto": [cal.theta, *alternatives, *([twin] if twin_ok else [])],
         "estimate": [cal.theta],
         "twin": [twin],
     }[start]

@@ -120,7 +120,7 @@ def _level(R: np.ndarray, Lk: np.ndarray, alpha: np.ndarray, beta: np.ndarray) -
 
 
 def whitened_pilots(
-    state: RecordState, model: Model, theta: np.ndarray, n_best: int = 3
+    state: RecordState, model: Model, theta: np.ndarray, n_best: int = 4
 ) -> list[np.ndarray]:
     r"""Pilots of a model whose force goes through a shaping filter: over a grid of the
     filter's :math:`(\omega_f, \zeta_f)` (:math:`\omega_n/4` to :math:`100\,\omega_N`,
@@ -128,8 +128,9 @@ def whitened_pilots(
     (:mod:`hosid.components.jets`, unrestored) give :math:`\theta(D) = \alpha + \beta D`
     and the level equation :math:`D`, as for a white force; the inferred force's
     standardized periodogram :math:`\bar P_k/S_0L_k` should be flat on the J2 band (least
-    squares about 1).  The best points of the up to ``n_best`` deepest valleys of that
-    misfit along :math:`\omega_f` are returned, best first: a filter near the oscillator's
+    squares about 1).  The up to ``n_best`` deepest local minima of that
+    misfit over the :math:`(\omega_f, \zeta_f)` grid (lower than their eight neighbours)
+    are returned, best first: a filter near the oscillator's
     resonance can fit the spectrum with the two swapped, and the estimate keeps the
     start whose equations agree best (:func:`hosid.inference.estimate.estimate`).
 
@@ -183,11 +184,12 @@ def whitened_pilots(
             "shaping filter: the record does not look like a randomly excited oscillator "
             "of this model"
         )
-    profile = cost.min(axis=1)
-    padded = np.concatenate([[np.inf], profile, [np.inf]])
-    valleys = [
-        a for a in range(wfs.size)
-        if np.isfinite(profile[a]) and profile[a] <= padded[a] and profile[a] <= padded[a + 2]
-    ]  # fmt: skip
-    valleys.sort(key=lambda a: profile[a])
-    return [found[a, int(np.argmin(cost[a]))] for a in valleys[:n_best]]
+    # the grid's local minima (each at most its eight neighbours), best first
+    padded = np.pad(cost, 1, constant_values=np.inf)
+    near = np.stack(
+        [np.roll(np.roll(padded, i, 0), j, 1)[1:-1, 1:-1] for i in (-1, 0, 1) for j in (-1, 0, 1)
+         if (i, j) != (0, 0)]
+    )  # fmt: skip
+    minima = np.argwhere(np.isfinite(cost) & np.all(cost <= near, axis=0))
+    ranked = sorted(map(tuple, minima), key=lambda ab: cost[ab])
+    return [found[ab] for ab in ranked[:n_best]]

@@ -346,6 +346,7 @@ CANDIDATES: tuple[str, ...] = (
     "quadratic_stiffness",
     "coulomb_friction",
     "coloured_excitation",
+    "narrowband_excitation",
     "excitation_mean",
     "measurement_noise",
 )

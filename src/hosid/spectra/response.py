@@ -18,7 +18,9 @@ spectrum of a second-order system:
 - the **excitation edge**: the first frequency above :math:`1.5\,\omega_n` from which
   :math:`S_a` stays below :math:`A/10` (at least 90 % of the bins above it): the
   excitation stops there (:data:`EDGE_DROP`).  The edge is bracketed by the last bin still
-  at half the level and the first bin below a tenth of it;
+  at half the level and the first bin below a tenth of it, and must be a cliff: a fall by
+  :data:`EDGE_CLIFF` within 7 % of its frequency on either side (a force through a
+  shaping filter rolls off as :math:`\omega^{-4}`, by 1.5 there);
 - the **noise floor** :math:`N`: the white floor of :math:`S_x`, from a non-negative
   least-squares fit :math:`S_a = A' + N\omega^4` on :math:`[1.5\,\omega_n, \omega_{top}]`
   or, above an edge, the median of :math:`S_x` there; the response falls into it at
@@ -41,10 +43,16 @@ from ..errors import HosidInputError
 from .blocks import BlockLayout, block_fft
 from .windows import get_window
 
-__all__ = ["EDGE_DROP", "ResponseSpectrum", "response_spectrum"]
+__all__ = ["EDGE_CLIFF", "EDGE_DROP", "ResponseSpectrum", "response_spectrum"]
 
 #: The acceleration spectrum falls below the force level divided by this at an edge.
 EDGE_DROP = 10.0
+#: At an edge the acceleration spectrum falls by at least this factor from just below it
+#: (0.9-0.97 of its frequency) to just beyond (1.03-1.1): a cliff.  A force through a
+#: shaping filter rolls off as w^-4 there (a factor of 1.5), and its fall is the
+#: filter's, not a band's edge (``narrowband_excitation``); band-limited forces fell by
+#: more than 20 (simulated edges, flat and rolled off, and the Silverbox).
+EDGE_CLIFF = 5.0
 #: Periodograms each smoothed ordinate averages (blocks times neighbouring bins).
 AVERAGES = 64
 
@@ -114,12 +122,20 @@ def _smooth(P: np.ndarray, width: int) -> np.ndarray:
 
 
 def _edge(w, Sa, level, start) -> tuple[float, float] | None:
-    """Bracket of the first sustained drop of ``Sa`` below ``level / EDGE_DROP``."""
+    """Bracket of the first sustained drop of ``Sa`` below ``level / EDGE_DROP``, if it
+    is a cliff (:data:`EDGE_CLIFF`).
+    """
     low = Sa < level / EDGE_DROP
     for k in np.flatnonzero(low & (w > start)):
         if low[k:].mean() >= 0.9 and low[k:].size >= 3:
             above = np.flatnonzero((Sa[:k] >= 0.5 * level) & (w[:k] > start))
             lo = w[above[-1]] if above.size else w[max(k - 1, 0)]
+            below = (w >= 0.9 * w[k]) & (w <= 0.97 * w[k])
+            beyond = (w >= 1.03 * w[k]) & (w <= 1.1 * w[k])
+            if below.any() and beyond.any():
+                drop = np.median(Sa[below]) / max(np.median(Sa[beyond]), 1e-300)
+                if drop < EDGE_CLIFF:  # a filtered force's roll-off, not an edge
+                    return None
             return float(lo), float(w[k])
     return None
 
