@@ -145,7 +145,7 @@ def summarize(tables: dict[str, Path], bound: dict[str, dict]) -> list[dict]:
     out = []
     for model, table in tables.items():
         for name, rows in _rows(table).items():
-            for p in (*DRIFT, "S0", "wf", "zf"):
+            for p in (*DRIFT, "S0", "wf", "zf", "rate"):
                 if f"{p}_mean" not in rows[0] or f"true_{p}" not in rows[0]:
                     continue
                 truth, mean = _col(rows, f"true_{p}"), _col(rows, f"{p}_mean")
@@ -170,16 +170,19 @@ def summarize(tables: dict[str, Path], bound: dict[str, dict]) -> list[dict]:
     return out
 
 
-def write(rows: list[dict], out: Path) -> Path:
-    """``summary.csv`` and ``summary.md``."""
+def write(rows: list[dict], out: Path, title: str | None = None, shaped=None) -> Path:
+    """``summary.csv`` and ``summary.md`` (``title`` and the cases ``shaped`` pooled for
+    another study's records).
+    """
+    shaped = shaped or (lambda case: CASES[case][2] is not None)
     out.mkdir(parents=True, exist_ok=True)
     with (out / "summary.csv").open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]), lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
     lines = [
-        "# Narrow-band excitation: bias and coverage (issue 29)",
-        "",
+        title
+        or "# Narrow-band excitation: bias and coverage (issue 29)\n\n"
         "`python analyses/excitation_study.py`: independent simulator, the default fit with "
         "`--model paper,narrowband_excitation` and with `--model paper` on the same records. "
         "bias: mean error over its standard error (se) and in bound sd; tolerance: "
@@ -199,9 +202,9 @@ def write(rows: list[dict], out: Path) -> Path:
         )
     pooled = {}
     for r in rows:
-        if r["param"] in DRIFT and CASES[r["case"]][2] is not None:
+        if r["param"] in DRIFT and shaped(r["case"]):
             pooled.setdefault(r["model"], []).append(r)
-    lines += ["", "Pooled over the drift coefficients of the narrow-band cases:", ""]
+    lines += ["", "Pooled over the drift coefficients of the non-white cases:", ""]
     for model, rs in pooled.items():
         w90 = sum(r["cover90"] * r["records"] for r in rs) / sum(r["records"] for r in rs)
         w50 = sum(r["cover50"] * r["records"] for r in rs) / sum(r["records"] for r in rs)
@@ -211,29 +214,41 @@ def write(rows: list[dict], out: Path) -> Path:
     return path
 
 
-def main(argv: Sequence[str] | None = None) -> Path:
-    """Run the study (unless ``--summary``) and write its summary."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+def arguments(argv, doc: str, cases, work: Path, results: Path) -> argparse.Namespace:
+    """The command line of a study of the excitation (this one's and ``impulse_study``'s)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--cases", nargs="+", default=list(cases), choices=list(cases))
     ap.add_argument("--records", type=int, default=10)
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--n-steps", type=int, default=None, help="fixed emcee steps per fit")
     ap.add_argument("--summary", action="store_true", help="only write the summary")
     ap.add_argument("--no-progress", action="store_true")
-    ap.add_argument("--work", type=Path, default=WORK)
-    ap.add_argument("--out", type=Path, default=RESULTS)
-    args = ap.parse_args(argv)
+    ap.add_argument("--work", type=Path, default=work)
+    ap.add_argument("--out", type=Path, default=results)
+    return ap.parse_args(argv)
+
+
+def keep_tables(tables: dict[str, Path], work: Path, out: Path) -> dict[str, Path]:
+    """The result tables that exist (a model not run yet is left out), copied to ``out``."""
+    tables = {m: t for m, t in tables.items() if t.is_file()}
+    if not tables:
+        raise SystemExit(f"{work}: no results yet; run the study first")
+    out.mkdir(parents=True, exist_ok=True)
+    for m, t in tables.items():
+        shutil.copyfile(t, out / f"{m}.csv")
+    return tables
+
+
+def main(argv: Sequence[str] | None = None) -> Path:
+    """Run the study (unless ``--summary``) and write its summary."""
+    args = arguments(argv, __doc__, CASES, WORK, RESULTS)
     tables = {m: args.work / m / "results.csv" for m in MODELS}
     if not args.summary:
         tables = run(
             args.cases, records=args.records, work=args.work, workers=args.workers,
             n_steps=args.n_steps, progress=not args.no_progress,
         )  # fmt: skip
-    for m, t in tables.items():
-        if not t.is_file():
-            raise SystemExit(f"{t}: no results yet; run the study first")
-        args.out.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(t, args.out / f"{m}.csv")
+    tables = keep_tables(tables, args.work, args.out)
     path = write(summarize(tables, bounds(args.cases, args.out / "bounds.json")), args.out)
     print(f"wrote {path}")
     return path

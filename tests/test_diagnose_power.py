@@ -79,7 +79,7 @@ def test_tiny_run_resumes_and_summarizes(power, tiny):
     assert json.loads(rows[1]["truth"])["mu"] == pytest.approx(5 * 1.37, rel=0.05)
     assert set(json.loads(rows[0]["evidence"])) == {
         "quadratic_stiffness", "coulomb_friction", "excitation_mean", "coloured_excitation",
-        "narrowband_excitation", "measurement_noise",
+        "narrowband_excitation", "impulsive_excitation", "measurement_noise",
     }  # fmt: skip
     # resuming skips what is done
     assert power.main([*args, "--out", str(tmp_path)]) == 0

@@ -81,7 +81,7 @@ def test_coordinates_map_the_null_to_zero(effect):
         assert c.to_u(float(c.to_param(u))) == pytest.approx(u, rel=1e-12)
     lo, hi = c.bounds(0.5, 4.0)
     assert lo == 0.0 if c.boundary else lo == 0.5
-    assert hi == {"identity": 4.0, "inverse_square": 4.0, "square": 16.0}[c.kind]
+    assert hi == {"identity": 4.0, "inverse_square": 4.0, "inverse": 2.0, "square": 16.0}[c.kind]
 
 
 def test_critical_z():

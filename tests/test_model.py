@@ -27,7 +27,10 @@ from hosid.model import (
 )
 
 #: NOTES.md, "Candidate effects (shared vocabulary)", spelled exactly so; issue 29
-#: adds the narrow-band excitation (its interface names it so).
+#: adds the narrow-band and the impulsive excitation (its interface names them so).
+#: terms that combine with no other excitation shape
+WHITENING_OR_IMPULSES = ("narrowband_excitation", "impulsive_excitation")
+
 NOTES_CANDIDATES = (
     "quadratic_damping",
     "cubic_stiffness",
@@ -35,6 +38,7 @@ NOTES_CANDIDATES = (
     "coulomb_friction",
     "coloured_excitation",
     "narrowband_excitation",
+    "impulsive_excitation",
     "excitation_mean",
     "measurement_noise",
 )
@@ -55,6 +59,7 @@ def test_term_kinds_and_parameters():
     kinds = {name: t.kind for name, t in TERMS.items()}
     assert kinds["excitation_level"] == kinds["coloured_excitation"] == "excitation"
     assert kinds["band_limited_excitation"] == kinds["narrowband_excitation"] == "excitation"
+    assert kinds["impulsive_excitation"] == "excitation"
     assert kinds["measurement_noise"] == "observation"
     assert set(DRIFT) == {
         "linear_damping",
@@ -67,7 +72,7 @@ def test_term_kinds_and_parameters():
     }
     params = [p for t in TERMS.values() for p in t.params]
     assert params == [
-        "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "wf", "zf",
+        "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "wf", "zf", "rate",
         "noise_sd",
     ]  # fmt: skip
     for t in TERMS.values():
@@ -205,7 +210,7 @@ def test_spec_strings_lists_aliases_and_canonical_order():
     assert Model.from_spec("excitation_mean,linear") == Model.from_spec("linear").with_term(
         "excitation_mean"
     )
-    full = Model.from_spec([t for t in TERMS if t != "narrowband_excitation"])
+    full = Model.from_spec([t for t in TERMS if t not in WHITENING_OR_IMPULSES])
     assert full.param_names == (
         "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "noise_sd"
     )  # fmt: skip
@@ -332,7 +337,7 @@ def test_prior_support_and_bad_arguments():
 
 
 def test_default_priors_hold_the_paper_values_and_the_null_effects():
-    model = Model.from_spec([t for t in TERMS if t != "narrowband_excitation"])
+    model = Model.from_spec([t for t in TERMS if t not in WHITENING_OR_IMPULSES])
     priors = model.default_priors(PAPER_SCALES)
     assert priors.names == model.param_names
     assert all(isinstance(priors[n], Prior) for n in priors)

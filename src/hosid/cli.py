@@ -166,6 +166,13 @@ def build_parser() -> argparse.ArgumentParser:
         sim.add_argument(
             f"--{name.replace('_', '-')}", dest=name, type=kind, help=f"{text}; default none"
         )
+    sim.add_argument(
+        "--impulse-rate",
+        dest="rate",
+        type=_positive,
+        help="Poisson impulses a second with Gaussian areas in place of the white force "
+        "(the same level S0, not Gaussian); default none",
+    )
     sim.add_argument("--duration", type=_positive, default=2000.0, help="seconds, default 2000")
     sim.add_argument("--dt", type=_positive, default=0.02, help="seconds, default 0.02")
     sim.add_argument("--seed", type=_integer(0), default=0, help="default 0")

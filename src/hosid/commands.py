@@ -92,7 +92,7 @@ def cmd_simulate(args) -> int:
     params.update(
         {
             k: getattr(args, k)
-            for k in ("b2", "mu", "m", "wc", "wb", "rolloff", "wf", "zf", "noise_sd")
+            for k in ("b2", "mu", "m", "wc", "wb", "rolloff", "wf", "zf", "rate", "noise_sd")
             if getattr(args, k) is not None
         }
     )

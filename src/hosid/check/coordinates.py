@@ -13,7 +13,8 @@ from scipy import stats
 
 __all__ = ["COORDINATES", "WHITE_CORNER", "Coordinate", "critical_z", "param_sd"]
 
-#: A corner this high is a white force on any sampled band (``u = 1/wc^2 = 0``).
+#: A corner (or an impulse rate) this high is a white (Gaussian) force on any sampled
+#: band (``u = 1/wc^2 = 0``, ``u = 1/rate = 0``).
 WHITE_CORNER = 1e7
 
 
@@ -24,7 +25,8 @@ class Coordinate:
     param: str
     label: str
     boundary: bool  #: the null lies on the boundary of the parameter space (u >= 0)
-    kind: str = "identity"  #: "identity", "inverse_square" (wc) or "square" (noise_sd)
+    #: "identity", "inverse_square" (wc, wf), "inverse" (an impulse rate) or "square"
+    kind: str = "identity"
     rounds: int = 2  #: fewest rounds of :func:`weigh` (module docstring)
     #: degrees of freedom of the quasi-likelihood ratio's reference: 2 for a shaping
     #: filter (its damping ratio, a nuisance the null does not hold, is fitted too:
@@ -37,6 +39,8 @@ class Coordinate:
         u = np.asarray(u, dtype=float)
         if self.kind == "inverse_square":
             return 1.0 / np.sqrt(np.maximum(u, WHITE_CORNER**-2.0))
+        if self.kind == "inverse":
+            return 1.0 / np.maximum(u, 1.0 / WHITE_CORNER)
         if self.kind == "square":
             return np.sqrt(np.maximum(u, 0.0))
         return u
@@ -45,6 +49,8 @@ class Coordinate:
         """The coordinate of a parameter value."""
         if self.kind == "inverse_square":
             return 0.0 if not value < WHITE_CORNER else float(value) ** -2.0
+        if self.kind == "inverse":
+            return 0.0 if not value < WHITE_CORNER else 1.0 / float(value)
         if self.kind == "square":
             return float(value) ** 2
         return float(value)
@@ -53,6 +59,8 @@ class Coordinate:
         """The coordinate's range from the parameter's prior support (the null included)."""
         if self.kind == "inverse_square":
             return 0.0, lower**-2.0
+        if self.kind == "inverse":
+            return 0.0, 1.0 / lower
         if self.kind == "square":
             return 0.0, upper**2
         return (0.0 if self.boundary else lower), upper
@@ -69,6 +77,8 @@ COORDINATES: dict[str, Coordinate] = {
     # the filter's damping ratio is a nuisance the null does not hold (the calibration of a
     # round gives the test its null distribution)
     "narrowband_excitation": Coordinate("wf", "1/wf^2", True, "inverse_square", df=2),
+    # the excess kurtosis of the force is proportional to 1/rate (white: 1/rate = 0)
+    "impulsive_excitation": Coordinate("rate", "1/rate", True, "inverse"),
     "measurement_noise": Coordinate("noise_sd", "noise_sd^2", True, "square", rounds=1),
 }
 

@@ -31,7 +31,7 @@ def components_for_test(model: Model, effect: str) -> list[Component]:
     ext = model.with_term(effect)
     if any(ext.has(p) for p in TAIL_PARAMS):
         comps.append(Tail())
-    if Spectrum(ext).whitening:  # as the fit of a shaping filter has
+    if Spectrum(ext).whitening or ext.has("rate"):  # as the fit of these models has
         comps.append(ForceKurtosis())
     return comps
 

@@ -250,7 +250,8 @@ def weigh(
         scale[i] = _own_sd(Transformed.of(null, to_theta), u, i, scale[i])
         if coord.kind == "inverse_square":  # start coloured, as the fit does
             u[i] = support[coord.param].upper ** -2.0
-        if Spectrum(ext).whitening:  # a filter's peak: the fit's multi-start estimate
+        if Spectrum(ext).whitening or ext.has("rate"):  # the fit's estimate (multi-start
+            # for a filter's peak; the rate piloted by the force's kurtosis)
             found = estimate(state, ext, comps)
             u, ql, rounds = found.theta.copy(), found.ql, 0
             u[i] = coord.to_u(found.theta[i])

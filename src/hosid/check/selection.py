@@ -164,13 +164,14 @@ def null_covariances(
     ``start``) pooled over the blocks of records simulated from ``model``:
     :math:`\hat\Sigma = \sum_r U_r^{\mathsf T}U_r / \sum_r (B_r - 1)` with
     :math:`\sum_r (B_r - 1)` degrees of freedom (:mod:`hosid.check.evidence`).  Not for a candidate
-    whose equations move with its own value (the coloured force's corner), nor from
+    whose equations move with its own value (the coloured force's corner, an impulse
+    rate), nor from
     fewer than two records.
     """
     states = [{} for _ in replicates]
     out = {}
     for c in candidates:
-        if COORDINATES[c].kind == "inverse_square":
+        if COORDINATES[c].kind in ("inverse_square", "inverse"):
             continue
         S, dof, labels, used = 0.0, 0, None, 0
         for rep, st in zip(replicates, states, strict=True):

@@ -10,7 +10,9 @@ frequencies).  With the block moments :math:`m_{2b} = \overline{g_\theta^2}` and
     \frac{3}{B(B-1)}\sum_{b\ne b'}m_{2b}m_{2b'}\Big]
 
 has mean zero (blocks independent), for any filter of the force, white or shaped, and
-whatever the sampling (a band-limited Gaussian process is Gaussian).  :math:`\sigma^2`
+whatever the sampling (a band-limited Gaussian process is Gaussian).  Under Poisson
+impulses (``impulsive_excitation``) its mean is the impulses' fourth cumulant
+:math:`3(2\pi S_0)^2c_4/(r\Delta t^3\sigma^4)` (:mod:`hosid.components.jumps`).  :math:`\sigma^2`
 is the pilot's :math:`\overline{g^2}` (a scale).  Both moments are polynomials in
 :math:`\lambda = (1, \theta_{drift})` whose coefficients (the blocks' second and fourth
 moment tensors of :math:`(\ddot x, \phi_1, \dots)`) are computed once.
@@ -32,6 +34,7 @@ import numpy as np
 from ..model.model import Model
 from ..state import RecordState
 from .base import Moments, restoration
+from .jumps import kink_constants
 
 __all__ = ["ForceKurtosis"]
 
@@ -63,6 +66,16 @@ class ForceKurtosis:
         m2b = (g0**2).mean(axis=1)
         sigma4 = float(m2b.mean()) ** 2
         M2sum = M2.sum(axis=0)
+        if model.has("rate"):  # Poisson impulses: 3 (2 pi S0)^2 c4 / (r dt^3) (.jumps)
+            i_S0, i_rate = model.index("S0"), model.index("rate")
+            k4 = 3.0 * kink_constants()[1] / (state.dt**3 * sigma4)
+
+            def impulses(th):
+                return k4 * (2.0 * math.pi * th[..., i_S0]) ** 2 / th[..., i_rate]
+        else:
+
+            def impulses(th):
+                return 0.0
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
@@ -72,7 +85,7 @@ class ForceKurtosis:
             per = np.einsum("...i,bij,...j->...b", lam, M2, lam)
             tot = np.einsum("...i,ij,...j->...", lam, M2sum, lam)
             cross = (tot**2 - np.sum(per**2, axis=-1)) / (B * (B - 1))
-            return ((m4 - 3.0 * cross) / sigma4)[..., None]
+            return ((m4 - 3.0 * cross) / sigma4 - impulses(th))[..., None]
 
         # the projection of the U-statistic on the blocks
         u = ((g0**4).mean(axis=1) - 6.0 * m2b.mean() * m2b) / sigma4

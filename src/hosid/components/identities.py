@@ -52,6 +52,7 @@ from ..state import RecordState
 from .base import Moments, restoration
 from .excitation import Excitation
 from .jets import EXTRA, whitened_statistics
+from .jumps import GRID, jump_table, read_table
 
 __all__ = ["Identities"]
 
@@ -109,12 +110,26 @@ class Identities:
                 G = t.test_antiderivative(state.v, scale=sv)
                 r = 0.0
                 e[:, a] = (q[j][1] + 0.5 * s2 * q[j][3]).mean(axis=1)
+
             else:
                 G = t.phi(state.x) * state.v
                 r = (t.phi(x, 1) * (v**2 + s2)).mean(axis=1) if t.variable == "x" else 0.0
                 ex[:, a] = t.phi(x, 1).mean(axis=1)
             const[:, a] = (G[nxt] - G[first]) / L.T - r
         return Q, const, e, ex, rows, s2
+
+    def jump_tables(self, state: RecordState, model: Model, rows: list, s2: float):
+        r"""Per block, row and area variance, :math:`e(\sigma_A^2)` of the velocity rows
+        under Poisson impulses (:mod:`hosid.components.jumps`; zero for the others).
+        """
+        sv = state.scales.sigma_v
+        terms = model.drift_terms
+        out = np.zeros((state.layout.B, len(rows), GRID.size))
+        for a, j in enumerate(rows):
+            if terms[j].variable == "v":
+                G = partial(terms[j].test_antiderivative, scale=sv)
+                out[:, a] = jump_table(G, state.blocks["v"], s2, sv)
+        return out
 
     def rows(self, model: Model) -> list[int]:
         """The drift terms whose identities are used."""
@@ -132,15 +147,28 @@ class Identities:
         terms = model.drift_terms
         nd = model.n_drift
         Qm, cm, em, exm = Q.mean(0), const.mean(0), e.mean(0), ex.mean(0)
+        sv = state.scales.sigma_v
+        impulses = model.has("rate")
+        if impulses:  # e(sigma_A^2) of the velocity rows (hosid.components.jumps)
+            tables = self.jump_tables(state, model, rows, s2)
+            tm = tables.mean(axis=0)
+            i_S0, i_rate = model.index("S0"), model.index("rate")
+
+            def area(th):
+                return 2.0 * np.pi * th[..., i_S0] / th[..., i_rate]
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
             D = (np.pi * exc.S0(th))[..., None]
+            if impulses:
+                return cm + th[..., :nd] @ Qm.T - D * read_table(tm, area(th), sv)
             rho, rho_x = exc.powers(th, state.dt)
             force = D * (rho[..., None] * em + rho_x[..., None] * exm)
             return cm + th[..., :nd] @ Qm.T - force
 
         th0 = np.asarray(pilot, dtype=float)
+        if impulses:
+            e = read_table(tables, area(th0), sv)
         D0 = np.pi * float(exc.S0(th0))
         rho0, rho_x0 = (float(r) for r in exc.powers(th0, state.dt))
         force0 = D0 * (rho0 * e + rho_x0 * ex)

@@ -242,8 +242,9 @@ def estimate(
     if any(model.has(p) for p in TAIL_PARAMS) and not any(isinstance(c, Tail) for c in components):
         components.append(Tail())  # the corner and the noise floor show in the tail
     whitening = Spectrum(model).whitening
-    if whitening and not any(isinstance(c, ForceKurtosis) for c in components):
-        components.append(ForceKurtosis())  # a filter and its oscillator may swap
+    kurtosis = whitening or model.has("rate")  # a filter and its oscillator may swap;
+    if kurtosis and not any(isinstance(c, ForceKurtosis) for c in components):
+        components.append(ForceKurtosis())  # the impulses' rate shows in the kurtosis
     if start is not None:
         starts = [np.array(start, dtype=float)]
     elif whitening:  # the filter and the oscillator may swap: try each

@@ -19,9 +19,11 @@ import math
 import numpy as np
 
 from ..components.base import feature_ffts
+from ..components.cumulant import ForceKurtosis
 from ..components.excitation import Excitation
 from ..components.identities import Identities
 from ..components.jets import whitened_statistics
+from ..components.jumps import kink_constants, read_table
 from ..components.spectral import default_band
 from ..errors import HosidInputError
 from ..model.excitation import Spectrum
@@ -44,6 +46,7 @@ def initial_theta(state: RecordState, model: Model) -> np.ndarray:
         "noise_sd": max(noise, 1e-3 * s.sigma_x),
         "wf": 2.0 * s.omega_nyquist,
         "zf": 0.7,
+        "rate": 100.0 * s.omega_nyquist,
     }
     return np.array([start.get(p, 0.0) for p in model.param_names])
 
@@ -65,7 +68,11 @@ def pilot(state: RecordState, model: Model, theta: np.ndarray | None = None) -> 
     bins = L.bins(*default_band(state), k_min=2)
     omega = bins * L.d_omega
     for _ in range(2):
-        Q, const, e, ex, _, s2 = Identities().statistics(state, model, theta)
+        Q, const, e, ex, rows, s2 = Identities().statistics(state, model, theta)
+        if model.has("rate"):  # the impulses' identities at the current rate
+            area = 2.0 * math.pi * theta[model.index("S0")] / theta[model.index("rate")]
+            tables = Identities().jump_tables(state, model, rows, s2)
+            e = read_table(tables, area, state.scales.sigma_v)
         exc = Excitation(model, theta, state.scales.sigma_v, state.scales.sigma_x)
         rho, rho_x = (float(r) for r in exc.powers(theta, state.dt))
         try:
@@ -99,9 +106,26 @@ def pilot(state: RecordState, model: Model, theta: np.ndarray | None = None) -> 
         D = float(roots.min())
         theta[:nd] = alpha + beta * D
         theta[model.index("S0")] = D / math.pi
+        if model.has("rate"):
+            theta[model.index("rate")] = _impulse_rate(state, model, theta)
     if not np.all(np.isfinite(theta)):
         raise HosidInputError("the pilot estimate is not finite")
     return theta
+
+
+def _impulse_rate(state: RecordState, model: Model, theta: np.ndarray) -> float:
+    r"""The rate of Poisson impulses whose fourth cumulant is the inferred force's at
+    ``theta`` (:mod:`hosid.components.jumps`), within the rate's prior support: a
+    Gaussian-looking force gets its top (white).
+    """
+    info = ForceKurtosis().prepare(state, model, theta).info
+    excess, m2 = info["excess_kurtosis_at_pilot"], info["sigma"] ** 2
+    support = model.default_priors(state.scales, constrained=False)["rate"]
+    if not excess > 0:
+        return float(support.upper)
+    c4 = kink_constants()[1]
+    rate = c4 * (2.0 * math.pi * theta[model.index("S0")]) ** 2 / (state.dt**3 * m2**2 * excess)
+    return float(np.clip(rate, support.lower, support.upper))
 
 
 def _level(R: np.ndarray, Lk: np.ndarray, alpha: np.ndarray, beta: np.ndarray) -> float | None:

@@ -26,6 +26,12 @@ the second-order shaping filter of ship-roll practice,
 the generator identities of the augmented state (:mod:`hosid.components.identities`)
 are then exact.  The other shapes reach the identities through the input power of the
 equivalent linear system (Stein's lemma, :class:`hosid.components.excitation.Excitation`).
+
+A non-Gaussian force keeps the white spectrum: ``impulsive_excitation``
+(:class:`ImpulsiveExcitation`) is Poisson impulses of rate :math:`r` with Gaussian areas
+of variance :math:`2\pi S_0/r`, whose fourth cumulant :math:`3(2\pi S_0)^2/r` (per unit
+time) enters the generator identities and the inferred force's kurtosis
+(:mod:`hosid.components.jumps`); white noise is :math:`r \to \infty`.
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ __all__ = [
     "BandLimitedExcitation",
     "ColouredExcitation",
     "ExcitationLevel",
+    "ImpulsiveExcitation",
     "NarrowbandExcitation",
     "ShapeTerm",
     "Spectrum",
@@ -220,6 +227,35 @@ class NarrowbandExcitation(ShapeTerm):
         }
 
 
+@dataclass(frozen=True, repr=False)
+class ImpulsiveExcitation(Term):
+    r"""Poisson impulses: a white but non-Gaussian force (paper eqs 34-38, :math:`P_4 \ne 0`).
+
+    .. math:: g(t) = \sum_iA_i\,\delta(t - t_i), \qquad t_i \sim \text{Poisson}(r),
+        \quad A_i \sim N(0, 2\pi S_0/r),
+
+    the flat spectrum :math:`S_0` of the white force with the fourth cumulant spectrum
+    :math:`P_4 = 3(2\pi S_0)^2/(r(2\pi)^3)`: the excess kurtosis of the force averaged
+    over a time :math:`\tau` is :math:`3/(r\tau)`, and white Gaussian noise is the limit
+    :math:`r \to \infty`.  :math:`r \sim \log U(\omega_n/100, 300\,\omega_N)` (per
+    second; at the top the force's kurtosis over a sample is 0.003).
+    """
+
+    name: ClassVar[str] = "impulsive_excitation"
+    params: ClassVar[tuple[str, ...]] = ("rate",)
+    kind: ClassVar[str] = "excitation"
+    latex: ClassVar[str] = r"\sum_iA_i\delta(t - t_i),\ A_i \sim N(0, 2\pi S_0/r)"
+
+    @staticmethod
+    def area_variance(S0, rate):
+        r"""The impulses' area variance :math:`\sigma_A^2 = 2\pi S_0/r`."""
+        return 2.0 * np.pi * np.asarray(S0, dtype=float) / np.asarray(rate, dtype=float)
+
+    def default_priors(self, scales):
+        """``rate ~ logU(w_n / 100, 300 w_N)``."""
+        return {"rate": LogUniform(scales.omega_n / 100.0, 300.0 * scales.omega_nyquist)}
+
+
 class Spectrum:
     r"""The force spectrum :math:`S_0L(\omega;\theta)` of a model (module docstring), for
     parameter vectors ``theta`` of shape ``(..., p)`` in the model's layout.
@@ -235,6 +271,11 @@ class Spectrum:
         ]
         self.i_wb = names.index("wb") if "wb" in names else None
         self.shape_indices = tuple(names.index(p) for t, _ in self.terms for p in t.shape_params)
+        if self.terms and "rate" in names:
+            raise ValueError(
+                "impulsive_excitation (a white spectrum) cannot be combined with "
+                + ", ".join(t.name for t, _ in self.terms)
+            )
         whitening = [t for t, _ in self.terms if t.whitening]
         if whitening and len(self.terms) > 1:
             raise ValueError(

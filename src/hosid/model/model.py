@@ -160,6 +160,10 @@ class Model:
             taken.add("coloured_excitation")
         if any(self.has(p) for p in ("wb", "wc")):  # one whitening shape alone
             taken.add("narrowband_excitation")
+        if any(self.has(p) for p in ("wb", "wc", "wf")):  # impulses: a white spectrum
+            taken.add("impulsive_excitation")
+        if self.has("rate"):
+            taken.update(("coloured_excitation", "narrowband_excitation"))
         return tuple(c for c in CANDIDATES if c not in taken)
 
     def latex(self) -> str:

@@ -17,7 +17,11 @@ white noise on the sub-step grid shaped once by an FFT of the whole run, then in
 as a smooth input (Heun with the force at both ends of a sub-step).  A second-order
 shaping filter (``wf``, ``zf``: :math:`S_0\omega_f^4/[(\omega_f^2 - \omega^2)^2 +
 (2\zeta_f\omega_f\omega)^2]`, a narrow-band wave moment) is made the same way, on 40
-sub-steps a sample.
+sub-steps a sample.  Poisson impulses (``rate`` a second, Gaussian areas of variance
+:math:`2\pi S_0/r`: the same white spectrum, not Gaussian) replace the white force's
+increments on 40 sub-steps a sample: a sub-step's increment is the sum of its impulses'
+areas, and the displacement's share :math:`\sum_iA_i(h - s_i)` is Heun's half of it plus
+:math:`\sum_iA_i(h/2 - s_i)` (impulse times :math:`s_i` uniform in the sub-step).
 Measurement noise (white, standard deviation ``noise_sd``) is added to the sampled
 displacement only.
 
@@ -56,6 +60,7 @@ __all__ = [
     "band_limited_force",
     "equivalent_rate",
     "narrowband_shape",
+    "poisson_impulses",
     "shaped_force",
     "simulate",
     "simulate_ensemble",
@@ -66,7 +71,7 @@ PAPER_PARAMS: dict[str, float] = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "
 
 #: Drift coefficients in the order of the compiled kernel, then the other keys.
 _DRIFT_KEYS = ("a1", "n1", "a2", "n2", "b2", "mu", "m")
-SIM_KEYS = (*_DRIFT_KEYS, "S0", "wc", "wb", "rolloff", "wf", "zf", "noise_sd")
+SIM_KEYS = (*_DRIFT_KEYS, "S0", "wc", "wb", "rolloff", "wf", "zf", "rate", "noise_sd")
 
 
 @numba.njit(cache=True, inline="always")
@@ -165,6 +170,22 @@ def band_limited_force(
     return shaped_force(n, h, S0, shape, rng)
 
 
+def poisson_impulses(
+    n: int, h: float, S0: float, rate: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """The velocity and displacement increments of ``n`` sub-steps of length ``h`` under
+    Poisson impulses (module docstring): each sub-step's sum of areas and
+    ``sum A_i (h/2 - s_i)``.
+    """
+    counts = rng.poisson(rate * h, n)
+    which = np.repeat(np.arange(n), counts)
+    areas = rng.standard_normal(which.size) * math.sqrt(2.0 * math.pi * S0 / rate)
+    times = rng.uniform(0.0, h, which.size)
+    dW = np.bincount(which, weights=areas, minlength=n)
+    dZ = np.bincount(which, weights=areas * (0.5 * h - times), minlength=n)
+    return dW, dZ
+
+
 def narrowband_shape(wf: float, zf: float):
     r"""The shaping filter's :math:`L(\omega) = \omega_f^4/[(\omega_f^2 - \omega^2)^2 +
     (2\zeta_f\omega_f\omega)^2]` (:class:`hosid.model.excitation.NarrowbandExcitation`).
@@ -223,6 +244,12 @@ def _check(params: Mapping[str, float], duration: float, dt: float, substeps) ->
         raise HosidInputError("a shaping filter needs both wf > 0 and zf > 0")
     if wf > 0 and (values.get("wc", 0.0) > 0 or values.get("wb", 0.0) > 0):
         raise HosidInputError("a shaping filter (wf, zf) cannot be combined with wc or wb")
+    rate = values.get("rate", 0.0)
+    if rate < 0 or (rate > 0 and any(values.get(k, 0.0) > 0 for k in ("wc", "wb", "wf"))):
+        raise HosidInputError(
+            "the impulse rate must be >= 0, and impulses (a white spectrum) are not combined "
+            "with wc, wb or wf"
+        )
     w = natural_frequency(values)
     limit = float(THRESHOLDS["sampling"][1])  # where the record check fails omega_e / omega_N
     if w * dt / math.pi > limit:
@@ -269,7 +296,8 @@ def simulate(
         ``a1, n1, a2, n2`` (eq 40), optional ``b2, mu, m`` (drift), ``S0`` (two-sided
         level, :math:`D^2 = 2\pi S_0`), ``wc`` (low-pass corner, 0 or absent = white),
         ``wb`` (band edge of the force, 0 or absent = none) and ``rolloff`` (the band's
-        roll-off) and ``noise_sd`` (measurement noise).
+        roll-off), ``wf, zf`` (a second-order shaping filter), ``rate`` (Poisson impulses
+        a second, 0 or absent = Gaussian) and ``noise_sd`` (measurement noise).
     duration, dt : float
         Record length and sampling interval (s).
     rng : numpy.random.Generator
@@ -314,6 +342,11 @@ def simulate(
         shape = narrowband_shape(wf, float(params["zf"]))
         f = shaped_force((burn + n_out) * sub + 1, h, S0, shape, rng)
         _heun_forced(f, n_out, sub, h, c, burn, xs, vs)
+    elif float(params.get("rate", 0.0) or 0.0) > 0:
+        sub = int(substeps) if substeps else 40
+        h = dt / sub
+        dW, dZ = poisson_impulses((burn + n_out) * sub, h, S0, float(params["rate"]), rng)
+        _heun(dW, dZ, n_out, sub, h, c, 0.0, burn, xs, vs)
     elif wb > 0:
         rolloff = float(params.get("rolloff", 0.0) or 0.0)
         f = band_limited_force((burn + n_out) * sub + 1, h, S0, wb, wc, rng, rolloff)

@@ -42,6 +42,7 @@ from .excitation import (
     BandLimitedExcitation,
     ColouredExcitation,
     ExcitationLevel,
+    ImpulsiveExcitation,
     NarrowbandExcitation,
 )
 from .priors import Uniform
@@ -335,6 +336,7 @@ TERMS: dict[str, Term] = {
         ColouredExcitation(),
         BandLimitedExcitation(),
         NarrowbandExcitation(),
+        ImpulsiveExcitation(),
         MeasurementNoise(),
     )
 }
@@ -347,6 +349,7 @@ CANDIDATES: tuple[str, ...] = (
     "coulomb_friction",
     "coloured_excitation",
     "narrowband_excitation",
+    "impulsive_excitation",
     "excitation_mean",
     "measurement_noise",
 )

@@ -222,7 +222,7 @@ def posterior_figure(diag: Diagnosis) -> Figure:
         post = st.posterior()
         draws = st.check.sample[:, st.check.model.index(post["param"])]
         ax.hist(draws, bins=40, color=_NAMED, alpha=0.8)
-        null = 0.0 if post["param"] not in ("wc", "wf") else None
+        null = 0.0 if post["param"] not in ("wc", "wf", "rate") else None
         if null is not None:
             ax.axvline(null, color="k", lw=1.0, label="null")
             ax.legend(fontsize=7)
