@@ -9,7 +9,6 @@ the independent simulator (``independent_sim.py``).
 
     python analyses/diagnose_power.py                  # the whole design (resumable)
     python analyses/diagnose_power.py --summary        # tables and figure from the CSV
-    python analyses/diagnose_power.py --cells clean@paper_S100 --records 2
 
 Design (``design()``): the paper oscillator (``paper_S100``, base ``paper``: candidates
 b2, mu, m, wc, noise_sd) and the ship-roll regime (base ``paper``) with each effect at 1,
@@ -216,6 +215,20 @@ def run_one(row: dict, ss: np.random.SeedSequence) -> dict:
     )
 
 
+def run_rows(todo: Sequence[dict], writer: csv.DictWriter, fh, seed: int) -> None:
+    """:func:`run_one` on each row, one CSV row flushed a record (seeds: module doc)."""
+    for i, row in enumerate(todo):
+        ss = np.random.SeedSequence([seed, zlib.crc32(row["cell"].encode()), row["record"]])
+        res = run_one(row, ss)
+        writer.writerow(res)
+        fh.flush()
+        print(
+            f"[{i + 1}/{len(todo)}] {row['cell']} #{row['record']}: named "
+            f"{res.get('named') or res['error']} ({res['seconds']} s)",
+            flush=True,
+        )
+
+
 def result_row(
     row: dict,
     *,
@@ -355,7 +368,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         bounds = compute_bounds(sorted(need), seed=a.seed, known=bounds)
         bounds_path.write_text(json.dumps({"|".join(k): v for k, v in bounds.items()}, indent=1))
     if not a.summary:
-        a.out.mkdir(parents=True, exist_ok=True)
         if not (a.out / "COMMIT").exists():  # the code the study's records were run with
             (a.out / "COMMIT").write_text(_commit() + "\n")
         done = {(r["cell"], int(r["record"])) for r in read_csv(path)}
@@ -378,18 +390,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 batch.run(todo, a.out, replicates=a.replicates, seed=a.seed, workers=a.workers)
                 w.writerows(batch.collect(todo, a.out))
                 todo = []
-            for i, row in enumerate(todo):
-                ss = np.random.SeedSequence(
-                    [a.seed, zlib.crc32(row["cell"].encode()), row["record"]]
-                )
-                res = run_one(row, ss)
-                w.writerow(res)
-                fh.flush()
-                print(
-                    f"[{i + 1}/{len(todo)}] {row['cell']} #{row['record']}: named "
-                    f"{res.get('named') or res['error']} ({res['seconds']} s)",
-                    flush=True,
-                )
+            run_rows(todo, w, fh, a.seed)
     summarize(read_csv(path), bounds, a.out)
     return 0
 

@@ -88,6 +88,16 @@ def _integer(minimum: int) -> Callable[[str], int]:
 
 
 # --- parser ---------------------------------------------------------------------------
+def _shape_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--excitation-shape",
+        metavar="CSV",
+        default=None,
+        help="the force spectrum's known shape (columns omega in rad/s, level): "
+        "S(omega) = S0 level(omega), S0 estimated",
+    )
+
+
 def _analysis_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--model",
@@ -95,6 +105,7 @@ def _analysis_options(p: argparse.ArgumentParser) -> None:
         metavar="MODEL",
         help="linear, paper, or comma-separated term names; default paper",
     )
+    _shape_option(p)
     p.add_argument(
         "--block-seconds",
         type=_positive,
@@ -239,6 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="BASE",
         help="base model: linear, paper, or term names; default paper",
     )
+    _shape_option(dia)
     dia.add_argument(
         "--candidates",
         metavar="LIST",

@@ -57,6 +57,16 @@ def _read(path: str):
     return read_record(Path(path))
 
 
+def _model(args):
+    """The model of ``--model``, with the measured shape of ``--excitation-shape``."""
+    if getattr(args, "excitation_shape", None) is None:
+        return args.model
+    from hosid.model import Model
+    from hosid.model.measured import read_shape
+
+    return Model.from_spec([*args.model.split(","), read_shape(args.excitation_shape)])
+
+
 def _print_fit(summary: dict) -> None:
     params = summary["parameters"]
     print(
@@ -129,7 +139,7 @@ def cmd_estimate(args) -> int:
     comps = components_for(cost, band=band, form=args.form, domain=args.domain)
     est = estimate(
         record,
-        args.model,
+        _model(args),
         comps,
         block_seconds=args.block_seconds,
         force=args.force,
@@ -278,7 +288,7 @@ def cmd_fit(args) -> int:
         checks=checks,
         force=args.force,
         unit=args.unit,
-        model=args.model,
+        model=_model(args),
         cost=args.cost,
         constrained=not args.unconstrained,
         n_walkers=args.walkers,
@@ -309,7 +319,7 @@ def cmd_diagnose(args) -> int:
     with output_dir(args.out, command=args.command_line) as stage:
         diag = diagnose(
             record,
-            args.model,
+            _model(args),
             rng=np.random.default_rng(args.seed),
             candidates=candidates,
             replicates=args.replicates,

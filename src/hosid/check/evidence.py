@@ -252,7 +252,7 @@ def weigh(
             u[i] = support[coord.param].upper ** -2.0
         if Spectrum(ext).whitening or ext.has("rate"):  # the fit's estimate (multi-start
             # for a filter's peak; the rate piloted by the force's kurtosis)
-            found = estimate(state, ext, comps)
+            found = estimate(state, ext, comps, simulations=0)
             u, ql, rounds = found.theta.copy(), found.ql, 0
             u[i] = coord.to_u(found.theta[i])
             qlu = Transformed.of(ql, to_theta)
@@ -341,7 +341,7 @@ def screen(
         If ``model`` itself cannot be estimated (only when ``start`` is not given).
     """
     if start is None:
-        start = estimate(record, model).values
+        start = estimate(record, model, simulations=0).values
     states: dict = {}
     found, failed = {}, {}
     for c in candidates:

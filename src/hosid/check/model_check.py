@@ -23,7 +23,7 @@ from ..errors import HosidInputError
 from ..inference.estimate import estimate
 from ..inference.fit import fit
 from ..model.model import Model
-from ..output.results import attr
+from ..output.results import attr, stored_model
 from ..record import Record
 from .gaps import gaps, robust_z
 from .measures import MeasureSpec, drift_function, measures
@@ -207,13 +207,13 @@ def check_model(
     tree = None
     if method == "emcee":
         tree = fit(record, model=model, seed=rng, progress=False)
-        model = Model.from_spec(list(attr(tree, "model")))  # with the excitation terms added
+        model = stored_model(tree)  # with the excitation terms added
         theta_hat = dict(attr(tree, "estimate"))
         hansen = dict(attr(tree, "calibration")["hansen"])
         sample = tree_sample(tree, model)
         info: dict = {"draws": int(sample.shape[0])}
     elif method == "screen":
-        est = estimate(record, model)
+        est = estimate(record, model, simulations=0)
         model = est.model
         theta_hat, hansen = est.values, dict(est.test)
         sample, info = screen_sample(est, rng)

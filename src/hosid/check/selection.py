@@ -206,7 +206,11 @@ def null_min_p(
     out = []
     for r, rep in enumerate(replicates):
         try:
-            start = estimate(rep, model).values if starts is None else model.params(starts[r])
+            start = (
+                estimate(rep, model, simulations=0).values
+                if starts is None
+                else model.params(starts[r])
+            )
             found, _ = screen(rep, model, candidates, start=start, covariances=covariances)
         except HosidInputError:
             continue

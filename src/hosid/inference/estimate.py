@@ -43,16 +43,18 @@ import numpy as np
 from ..components.base import Component, restoration
 from ..components.cumulant import ForceKurtosis
 from ..components.identities import Identities
-from ..components.spectral import J2
+from ..components.spectral import J2, default_band
 from ..components.tail import TAIL_PARAMS, Tail
 from ..errors import HosidInputError
 from ..model.excitation import Spectrum
+from ..model.measured import MeasuredExcitation
 from ..model.model import Model
 from ..model.priors import LogUniform, PriorSet
 from ..record import Record
 from ..screen import check_record, reject_failures
 from ..state import RecordState
 from ..verdicts import Check
+from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, bias, shifted
 from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
@@ -133,6 +135,17 @@ def excitation_for(
     if state.repeat_note():
         notes.append(state.repeat_note())
     whitening = Spectrum(model).whitening
+    for t in model.terms:
+        if isinstance(t, MeasuredExcitation):
+            lo, hi = default_band(state)
+            omega = state.layout.bins(lo, hi, k_min=2) * state.layout.d_omega
+            t.check_band(float(omega[0]), float(omega[-1]))
+            _, wf, zf = t.rational
+            notes.append(
+                f"the measured excitation shape enters the identities through its "
+                f"second-order form (wf {wf:.4g} rad/s, zf {zf:.3g}), {100 * t.misfit(omega):.0f} "
+                "% rms from the table on the record's band"
+            )
     if whitening and state.spectrum.band_limited:
         notes.append(
             "the acceleration spectrum falls off above the shaping filter's band: no "
@@ -208,6 +221,8 @@ def estimate(
     force: bool = False,
     unit: str = "m",
     checks: Sequence[Check] | None = None,
+    simulations: int = DEFAULT_SIMULATIONS,
+    seed: int | np.random.SeedSequence | None = None,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` and its mode (module docstring),
     searched within the default priors' supports; with ``band_limit`` the model gets
@@ -217,7 +232,10 @@ def estimate(
     A :class:`~hosid.record.Record` is checked first (:func:`hosid.screen.check_record`);
     ``force`` estimates a record that fails a check anyway, ``unit`` names the
     displacement's unit in the checks' messages, ``checks`` passes the record's checks
-    when the caller already made them.
+    when the caller already made them.  With ``impulsive_excitation`` the estimate is
+    corrected for its sampling bias by ``simulations`` records of the model a step
+    (:mod:`hosid.inference.correction`; 0: not), drawn from ``seed`` (default: a seed
+    fixed by the record's samples).
 
     Raises
     ------
@@ -242,7 +260,7 @@ def estimate(
     if any(model.has(p) for p in TAIL_PARAMS) and not any(isinstance(c, Tail) for c in components):
         components.append(Tail())  # the corner and the noise floor show in the tail
     whitening = Spectrum(model).whitening
-    kurtosis = whitening or model.has("rate")  # a filter and its oscillator may swap;
+    kurtosis = model.has("wf") or model.has("rate")  # a filter and its oscillator may swap;
     if kurtosis and not any(isinstance(c, ForceKurtosis) for c in components):
         components.append(ForceKurtosis())  # the impulses' rate shows in the kurtosis
     if start is not None:
@@ -269,6 +287,13 @@ def estimate(
     if best is None:
         raise failure
     J_best, theta, ql, theta0 = best
+    if model.has("rate") and simulations:  # the impulses' sampling bias (.correction)
+        theta, ql = _unbiased(state, model, components, theta, ql, simulations, seed)
+        J_best, solutions = float(-2.0 * ql(theta)), [theta]
+        notes.append(
+            "the estimate is corrected for the impulses' sampling bias (indirect inference: "
+            f"{DEFAULT_ITERATIONS} x {simulations} records simulated near the estimate)"
+        )
     cov = ql.laplace(theta, typical_scale(model, state, theta))
     # a parameter the equations barely see (e.g. at a bound of its support) gets no more
     # spread than a quarter of its prior's width
@@ -282,6 +307,33 @@ def estimate(
     return Estimate(
         model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others
     )
+
+
+def _unbiased(state, model, components, theta, ql, n, seed):
+    """The estimate and quasi-likelihood corrected for the sampling bias
+    (:mod:`hosid.inference.correction`).
+    """
+    from ..model.simulate import simulate
+
+    names = model.param_names
+    positive = np.array([p in ("S0", "rate", "wc", "wf", "zf") for p in names])
+    if seed is None:  # the estimate stays a function of the record
+        seed = np.random.SeedSequence(int(state.record.hash[:16], 16))
+
+    def simulated(th, rng):
+        rec = simulate(model.params(th), duration=state.record.duration, dt=state.dt, rng=rng)
+        return prepare_state(rec, model, block_seconds=state.layout.T)
+
+    def estimator(st):
+        return estimate(st, model, components, band_limit=False, simulations=0).theta
+
+    rng = np.random.default_rng(seed)
+    try:
+        beta = bias(estimator, simulated, theta, positive, rng, n=n)
+    except HosidInputError as exc:
+        raise HosidInputError(f"the sampling-bias correction failed: {exc}") from None
+    moved = np.where(positive, theta * np.exp(-beta), theta - beta)
+    return moved, shifted(ql, beta, positive, n)
 
 
 def _alternatives(ql, theta, solutions, cov, J_best, gap: float = 9.21) -> list[np.ndarray]:

@@ -27,6 +27,7 @@ from .. import __version__
 from ..components.base import Component
 from ..components.spectral import default_band, force_periodogram
 from ..errors import HosidInputError
+from ..model.measured import shape_attrs
 from ..model.model import Model
 from ..model.priors import PriorSet
 from ..output.results import build_tree
@@ -188,6 +189,7 @@ def fit(
         signature = {
             "record": record.hash,
             "model": list(model.names),
+            **shape_attrs(model),
             "cost": cost,
             "constrained": constrained,
             "block_seconds": est.state.layout.T,
@@ -242,6 +244,7 @@ def fit(
         "duration": record.duration,
         "dt": record.dt,
         "model": list(model.names),
+        **shape_attrs(model),
         "components": comp_names,
         "cost": cost or "default",
         "constrained": constrained,

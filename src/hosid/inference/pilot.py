@@ -177,15 +177,21 @@ def whitened_pilots(
     Y = feature_ffts(state, model, 0.0, bins)
     R = np.einsum("ibk,jbk->kij", Y, Y.conj()).real / (L.B * 2 * math.pi * L.T * state.window.k2)
     s = state.scales
-    i_wf, i_zf, i_S0 = model.index("wf"), model.index("zf"), model.index("S0")
-    wfs = np.geomspace(0.25 * s.omega_n, 100.0 * s.omega_nyquist, 48)
-    zfs = np.geomspace(0.02, 2.0, 16)
+    i_S0 = model.index("S0")
+    if model.has("wf"):
+        i_wf, i_zf = model.index("wf"), model.index("zf")
+        wfs = np.geomspace(0.25 * s.omega_n, 100.0 * s.omega_nyquist, 48)
+        zfs = np.geomspace(0.02, 2.0, 16)
+    else:  # a measured shape: the filter is fixed
+        i_wf = i_zf = None
+        wfs, zfs = np.array([np.nan]), np.array([np.nan])
     cost = np.full((wfs.size, zfs.size), np.inf)
     found = {}
     for a, wf in enumerate(wfs):
         for b, zf in enumerate(zfs):
             th = theta.copy()
-            th[i_wf], th[i_zf] = wf, zf
+            if i_wf is not None:
+                th[i_wf], th[i_zf] = wf, zf
             p = [float(c) for c in spectrum.operator(th)]
             Wp = np.array([p[m] * p[n] for m, n in pairs])
             try:

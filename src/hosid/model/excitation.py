@@ -17,6 +17,8 @@ term                              :math:`1/L` factor                            
                                   :math:`\omega_b`
 ``narrowband_excitation``         :math:`[(\omega_f^2 - \omega^2)^2 +                  whitening
                                   (2\zeta_f\omega_f\omega)^2]/\omega_f^4`
+``measured_excitation``           a table :math:`1/\ell(\omega)`                        whitening
+                                  (:mod:`hosid.model.measured`)
 ================================  ==================================================  ===
 
 A *whitening* term is white noise through a rational (all-pole) filter,
@@ -114,6 +116,15 @@ class ShapeTerm(Term):
     def operator(self, *values) -> list:
         """The whitening operator's coefficients :math:`p_m` of :math:`s^m`."""
         raise NotImplementedError  # pragma: no cover
+
+    @property
+    def order(self) -> int:
+        """The whitening operator's order (its parameters' number)."""
+        return len(self.params)
+
+    def table(self, omega):
+        """A tabulated factor of :math:`L` (``None``: the shape is :meth:`inverse_poly`'s)."""
+        return None
 
 
 @dataclass(frozen=True, repr=False)
@@ -296,7 +307,7 @@ class Spectrum:
     @property
     def order(self) -> int:
         """The order :math:`M` of the whitening operator (0 unless :attr:`whitening`)."""
-        return sum(len(t.params) for t, _ in self.terms if t.whitening)
+        return sum(t.order for t, _ in self.terms if t.whitening)
 
     def _values(self, theta, idx):
         th = np.asarray(theta, dtype=float)
@@ -331,7 +342,12 @@ class Spectrum:
         new = (...,) + (None,) * w2.ndim
         c = self.inverse_poly(theta)
         den = sum(ck[new] * w2**k for k, ck in enumerate(c))
-        return 1.0 / den
+        out = 1.0 / den
+        for t, _ in self.terms:  # a measured shape's table
+            tab = t.table(omega)
+            if tab is not None:
+                out = out * tab
+        return out
 
     def shape(self, omega, theta) -> np.ndarray:
         r""":math:`L(\omega)` for each ``theta``: :meth:`lowpass` cut at the band's edge."""

@@ -81,8 +81,9 @@ class Model:
             raise HosidInputError(str(exc)) from None
 
     @classmethod
-    def from_spec(cls, spec: str | Iterable[str] | Model) -> Model:
-        """A model from ``"linear"``, ``"paper"`` or term names (a list, or comma-separated).
+    def from_spec(cls, spec: str | Iterable[str | Term] | Model) -> Model:
+        """A model from ``"linear"``, ``"paper"`` or term names (a list, or comma-separated;
+        a list may hold terms built from data, e.g. :func:`hosid.model.measured.read_shape`).
 
         Raises
         ------
@@ -92,8 +93,11 @@ class Model:
         if isinstance(spec, Model):
             return spec
         items = spec.split(",") if isinstance(spec, str) else list(spec)
-        names: list[str] = []
+        names: list[str | Term] = []
         for item in items:
+            if isinstance(item, Term):  # a term built from data (a measured shape)
+                names.append(item)
+                continue
             key = str(item).strip()
             if not key:
                 continue
@@ -105,7 +109,7 @@ class Model:
                 raise HosidInputError(f"unknown model term {key!r}; valid names: {_valid_names()}")
         if not names:
             raise HosidInputError(f"empty model spec {spec!r}; valid names: {_valid_names()}")
-        return cls(tuple(TERMS[n] for n in names))
+        return cls(tuple(TERMS[n] if isinstance(n, str) else n for n in names))
 
     def with_term(self, name: str) -> Model:
         """A copy with the term ``name`` added.
@@ -160,7 +164,9 @@ class Model:
             taken.add("coloured_excitation")
         if any(self.has(p) for p in ("wb", "wc")):  # one whitening shape alone
             taken.add("narrowband_excitation")
-        if any(self.has(p) for p in ("wb", "wc", "wf")):  # impulses: a white spectrum
+        if self.has("measured_excitation"):  # the shape is known
+            taken.update(("coloured_excitation", "narrowband_excitation"))
+        if any(self.has(p) for p in ("wb", "wc", "wf", "measured_excitation")):  # impulses: white
             taken.add("impulsive_excitation")
         if self.has("rate"):
             taken.update(("coloured_excitation", "narrowband_excitation"))

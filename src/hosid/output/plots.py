@@ -16,8 +16,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-from ..model.model import Model
-from .results import attr, parameter_names
+from .results import attr, parameter_names, stored_model
 
 __all__ = [
     "MAX_DRAWS",
@@ -86,9 +85,8 @@ def known_truths(tree: xr.DataTree) -> dict[str, float]:
     factor) with the fit's ``sigma_v``.
     """
     known = {k: float(v) for k, v in (attr(tree, "truths") or {}).items() if v is not None}
-    sigma_v, names = attr(tree, "sigma_v"), attr(tree, "model")
-    if "a1eq" not in known and sigma_v is not None and names:
-        model = Model.from_spec(list(names))
+    sigma_v, model = attr(tree, "sigma_v"), stored_model(tree)
+    if "a1eq" not in known and sigma_v is not None and model is not None:
         if all(p in known for p in model.param_names) and model.has("a1"):
             theta = [known[p] for p in model.param_names]
             known["a1eq"] = float(model.equivalent_damping(theta, float(sigma_v)))

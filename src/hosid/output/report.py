@@ -18,10 +18,9 @@ from typing import Any
 import xarray as xr
 from matplotlib.figure import Figure
 
-from ..model.model import Model
 from . import plots, spectrum_plots
 from .files import b64, make_dir, png, render, write_atomic
-from .results import ESS_MIN, RHAT_MAX, attr, jsonable, summarize
+from .results import ESS_MIN, RHAT_MAX, attr, jsonable, stored_model, summarize
 
 __all__ = ["CAPTIONS", "COLUMNS", "figures", "write_report"]
 
@@ -181,8 +180,8 @@ def _table(summary: Mapping[str, Any], truths: Mapping[str, float]) -> list[dict
 
 
 def _model(tree: xr.DataTree) -> dict[str, Any]:
-    names = list(attr(tree, "model") or [])
-    terms = Model.from_spec(names).terms if names else ()
+    model = stored_model(tree)
+    terms = model.terms if model is not None else ()
     drift = [_TERM_TEXT.get(t.name, t.latex) for t in terms if t.kind == "drift"]
     return {
         "equation": "ẍ + " + " + ".join(drift) + " = f(t)" if drift else "",

@@ -140,6 +140,26 @@ def attr(tree: xr.DataTree, key: str, default: Any = None) -> Any:
     return tree.attrs.get(key, default)
 
 
+def stored_model(tree: xr.DataTree):
+    """The fitted model (with the excitation terms the fit added), or ``None``; a
+    measured excitation shape comes back from its stored table.
+    """
+    from ..model.measured import MeasuredExcitation
+    from ..model.model import Model
+
+    names = list(attr(tree, "model") or [])
+    if not names:
+        return None
+    table = attr(tree, "excitation_shape")
+    terms = [
+        MeasuredExcitation.from_table(table["omega"], table["level"])
+        if n == MeasuredExcitation.name and table
+        else n
+        for n in names
+    ]
+    return Model.from_spec(terms)
+
+
 def parameter_names(tree: xr.DataTree) -> list[str]:
     """Sampled parameters (posterior variables except the derived ``a1eq``)."""
     return [k for k in tree["posterior"].data_vars if k != "a1eq"]

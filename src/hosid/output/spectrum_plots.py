@@ -12,9 +12,8 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from ..model.excitation import Spectrum
-from ..model.model import Model
 from .plots import _axes, _draws, _sigma_x, _thin, length_unit
-from .results import attr
+from .results import attr, stored_model
 
 __all__ = ["force_spectrum_plot", "spectrum_plot"]
 
@@ -24,11 +23,10 @@ def _shape_draws(tree: xr.DataTree, omega: np.ndarray, most: int | None = 400):
     ``most`` of them, evenly thinned),
     ``(draws, omega)``, or ``None`` when the posterior lacks a parameter of the model.
     """
-    names = attr(tree, "model")
+    model = stored_model(tree)
     post = tree["posterior"].data_vars
-    if not names:
+    if model is None:
         return None
-    model = Model.from_spec(list(names))
     if not all(p in post for p in model.param_names):
         return None
     n = _draws(tree, model.param_names[0]).size

@@ -1,0 +1,96 @@
+r"""The sampling bias of an estimate under Poisson impulses, corrected by simulation.
+
+Every component restores in closed form what a sampled record lacks above the Nyquist
+frequency when the force is Gaussian (:func:`hosid.state.velocity_deficit`,
+:func:`hosid.state.jet_deficit`).  Under Poisson impulses no closed form holds: a kick
+(at the paper's level an area of sd 18-35 against a velocity sd of 5) is rounded off by
+the quadratic damping within a few samples, so the sampled velocity misses the kicks'
+peaks (:math:`E|\dot x|^3` 18 % low at 0.5 impulses a second) and the inferred force's
+kurtosis their sharpness; the estimate is biased (paper oscillator at 0.5 a second:
+:math:`a_2` 13 % and :math:`S_0` 18 % low, the rate 16 % high).  The model itself holds
+the answer.  With :math:`\hat\theta` the estimate of the record and
+:math:`b(\theta) = E_\theta[\hat\theta] - \theta` the estimator's bias on records of the
+model at :math:`\theta` (the record's duration and sampling), estimated by the mean of
+``n`` simulated records (:func:`hosid.model.simulate.simulate`), the corrected estimate
+iterates
+
+.. math:: \theta_0 = \hat\theta, \qquad \theta_{i+1} = \hat\theta - b(\theta_i)
+
+(``iterations`` times; the bias grows with the impulses' area, which the raw estimate
+understates, so one step falls short), the bias of a positive parameter (``S0``,
+``rate``) taken as a ratio.  This is the bias-corrected estimator of indirect inference
+(Gourieroux, Monfort and Renault 1993; MacKinnon and Smith 1998).  The quasi-likelihood
+is moved with it, :math:`\tilde\ell(\theta) = \ell(\theta + b)`, so that its mode is the
+corrected estimate and the sampler draws around it, and it is widened by :math:`1 + 1/n`
+for the noise of :math:`b`.  Measured on 3 records of the independent simulator at 0.5
+impulses a second, one step: :math:`a_2` 21.6 -> 23.2, :math:`S_0` 82 -> 95, the rate
+0.58 -> 0.48 (truth 25, 100, 0.5).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from .gmm import QuasiLikelihood
+
+__all__ = ["DEFAULT_ITERATIONS", "DEFAULT_SIMULATIONS", "bias", "shifted"]
+
+#: Records simulated for each evaluation of the bias.
+DEFAULT_SIMULATIONS = 8
+#: Evaluations of the bias.
+DEFAULT_ITERATIONS = 2
+
+
+def bias(
+    estimator: Callable[[object], np.ndarray],
+    simulate: Callable[[np.ndarray, np.random.Generator], object],
+    theta_hat: np.ndarray,
+    positive: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    n: int = DEFAULT_SIMULATIONS,
+    iterations: int = DEFAULT_ITERATIONS,
+    progress: Callable[[], None] | None = None,
+) -> np.ndarray:
+    r"""The shift :math:`\beta` with corrected estimate :math:`\hat\theta - \beta`
+    (additive) or :math:`\hat\theta e^{-\beta}` (where ``positive``), module docstring.
+
+    ``estimator(record) -> theta``; ``simulate(theta, rng) -> record``.
+    """
+    theta_hat = np.asarray(theta_hat, dtype=float)
+    theta = theta_hat.copy()
+    beta = np.zeros_like(theta)
+    for _ in range(iterations):
+        draws = []
+        for _ in range(n):
+            draws.append(estimator(simulate(theta, rng)))
+            if progress is not None:
+                progress()
+        mean = np.mean(draws, axis=0)
+        beta = np.where(positive, np.log(np.where(positive, mean / theta, 1.0)), mean - theta)
+        theta = np.where(positive, theta_hat * np.exp(-beta), theta_hat - beta)
+    return beta
+
+
+def shifted(ql: QuasiLikelihood, beta: np.ndarray, positive: np.ndarray, n: int):
+    r""":math:`\ell(\theta + b)` (module docstring), widened by :math:`1 + 1/n`."""
+    beta = np.asarray(beta, dtype=float)
+
+    def move(theta):
+        th = np.asarray(theta, dtype=float)
+        return np.where(positive, th * np.exp(beta), th + beta)
+
+    moments = [
+        dataclasses.replace(m, mean=lambda theta, f=m.mean: f(move(theta))) for m in ql.moments
+    ]
+    info = {
+        **ql.info,
+        "sampling_bias": {"shift": beta.tolist(), "simulations": n, "positive": positive.tolist()},
+    }
+    return dataclasses.replace(
+        ql, moments=moments, L_inv=ql.L_inv / math.sqrt(1.0 + 1.0 / n), info=info
+    )
