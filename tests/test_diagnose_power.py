@@ -70,6 +70,7 @@ def tiny(power, tmp_path_factory):
     return out
 
 
+@pytest.mark.slow  # a diagnose of 7 candidates on two records: 1.5 min of the suite
 def test_tiny_run_resumes_and_summarizes(power, tiny):
     cells, args, tmp_path = CELLS, ["--cells", *CELLS, *TINY], tiny
     rows = sorted(power.read_csv(tmp_path / "power.csv"), key=lambda r: r["hidden"] != "none")
@@ -89,6 +90,7 @@ def test_tiny_run_resumes_and_summarizes(power, tiny):
     assert (tmp_path / "power.png").is_file()
 
 
+@pytest.mark.slow
 def test_batch_run_gives_the_same_rows(power, tiny, tmp_path):
     """``--batch``: the record simulated and diagnosed as a task of ``hosid batch
     simulate-study`` (the cell's own streams) gives the single-process row.
