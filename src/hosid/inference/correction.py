@@ -35,9 +35,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..errors import HosidInputError
+from ..progress import Stages, bar
 from .gmm import QuasiLikelihood
 
-__all__ = ["DEFAULT_ITERATIONS", "DEFAULT_SIMULATIONS", "bias", "shifted"]
+__all__ = ["DEFAULT_ITERATIONS", "DEFAULT_SIMULATIONS", "bias", "shifted", "unbiased"]
 
 #: Records simulated for each evaluation of the bias.
 DEFAULT_SIMULATIONS = 8
@@ -94,3 +96,41 @@ def shifted(ql: QuasiLikelihood, beta: np.ndarray, positive: np.ndarray, n: int)
     return dataclasses.replace(
         ql, moments=moments, L_inv=ql.L_inv / math.sqrt(1.0 + 1.0 / n), info=info
     )
+
+
+def unbiased(state, model, components, theta, ql, n, seed, progress):
+    """The estimate ``theta`` of the record's ``state`` and its quasi-likelihood ``ql``,
+    corrected (module docstring) by :func:`bias` of
+    :func:`hosid.inference.estimate.estimate` on ``n`` records a step drawn from ``seed``
+    (default: one fixed by the record's samples).
+    """
+    from ..model.simulate import simulate
+    from .estimate import estimate, prepare_state
+
+    names = model.param_names
+    positive = np.array([p in ("S0", "rate", "wc", "wf", "zf") for p in names])
+    if seed is None:  # the estimate stays a function of the record
+        seed = np.random.SeedSequence(int(state.record.hash[:16], 16))
+
+    def simulated(th, rng):
+        rec = simulate(model.params(th), duration=state.record.duration, dt=state.dt, rng=rng)
+        return prepare_state(rec, model, block_seconds=state.layout.T)
+
+    def estimator(st):
+        return estimate(st, model, components, band_limit=False, simulations=0).theta
+
+    rng = np.random.default_rng(seed)
+    label, total = "sampling-bias correction", DEFAULT_ITERATIONS * n
+    if isinstance(progress, Stages):
+        b = progress.stage(label, total=total, unit="record")
+    else:
+        b = bar(f"hosid: {label}", total=total, enabled=bool(progress), unit="record")
+    try:
+        beta = bias(estimator, simulated, theta, positive, rng, n=n, progress=lambda: b.update(1))
+    except HosidInputError as exc:
+        raise HosidInputError(f"the sampling-bias correction failed: {exc}") from None
+    finally:
+        if not isinstance(progress, Stages):
+            b.close()
+    moved = np.where(positive, theta * np.exp(-beta), theta - beta)
+    return moved, shifted(ql, beta, positive, n)

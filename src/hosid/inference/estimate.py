@@ -50,11 +50,12 @@ from ..model.excitation import Spectrum
 from ..model.measured import MeasuredExcitation
 from ..model.model import Model
 from ..model.priors import LogUniform, PriorSet
+from ..progress import Stages
 from ..record import Record
 from ..screen import check_record, reject_failures
 from ..state import RecordState
 from ..verdicts import Check
-from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, bias, shifted
+from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, unbiased
 from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
@@ -223,6 +224,7 @@ def estimate(
     checks: Sequence[Check] | None = None,
     simulations: int = DEFAULT_SIMULATIONS,
     seed: int | np.random.SeedSequence | None = None,
+    progress: bool | Stages = False,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` and its mode (module docstring),
     searched within the default priors' supports; with ``band_limit`` the model gets
@@ -235,7 +237,7 @@ def estimate(
     when the caller already made them.  With ``impulsive_excitation`` the estimate is
     corrected for its sampling bias by ``simulations`` records of the model a step
     (:mod:`hosid.inference.correction`; 0: not), drawn from ``seed`` (default: a seed
-    fixed by the record's samples).
+    fixed by the record's samples), with a progress bar when ``progress``.
 
     Raises
     ------
@@ -288,7 +290,7 @@ def estimate(
         raise failure
     J_best, theta, ql, theta0 = best
     if model.has("rate") and simulations:  # the impulses' sampling bias (.correction)
-        theta, ql = _unbiased(state, model, components, theta, ql, simulations, seed)
+        theta, ql = unbiased(state, model, components, theta, ql, simulations, seed, progress)
         J_best, solutions = float(-2.0 * ql(theta)), [theta]
         notes.append(
             "the estimate is corrected for the impulses' sampling bias (indirect inference: "
@@ -307,33 +309,6 @@ def estimate(
     return Estimate(
         model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others
     )
-
-
-def _unbiased(state, model, components, theta, ql, n, seed):
-    """The estimate and quasi-likelihood corrected for the sampling bias
-    (:mod:`hosid.inference.correction`).
-    """
-    from ..model.simulate import simulate
-
-    names = model.param_names
-    positive = np.array([p in ("S0", "rate", "wc", "wf", "zf") for p in names])
-    if seed is None:  # the estimate stays a function of the record
-        seed = np.random.SeedSequence(int(state.record.hash[:16], 16))
-
-    def simulated(th, rng):
-        rec = simulate(model.params(th), duration=state.record.duration, dt=state.dt, rng=rng)
-        return prepare_state(rec, model, block_seconds=state.layout.T)
-
-    def estimator(st):
-        return estimate(st, model, components, band_limit=False, simulations=0).theta
-
-    rng = np.random.default_rng(seed)
-    try:
-        beta = bias(estimator, simulated, theta, positive, rng, n=n)
-    except HosidInputError as exc:
-        raise HosidInputError(f"the sampling-bias correction failed: {exc}") from None
-    moved = np.where(positive, theta * np.exp(-beta), theta - beta)
-    return moved, shifted(ql, beta, positive, n)
 
 
 def _alternatives(ql, theta, solutions, cov, J_best, gap: float = 9.21) -> list[np.ndarray]:

@@ -142,8 +142,9 @@ def fit(
         comps = list(components)
         cost = cost or "custom"
     est = estimate(
-        record, model, comps, block_seconds=block_seconds, force=force, unit=unit, checks=checks
-    )
+        record, model, comps, block_seconds=block_seconds, force=force, unit=unit, checks=checks,
+        progress=progress,
+    )  # fmt: skip
     model = est.model  # with the excitation terms the record calls for (estimate docstring)
     timings["estimate"] = time.perf_counter() - t0
     if priors is None:
