@@ -150,3 +150,14 @@ def test_known_shape_is_unbiased_over_records():
     lo, hi = np.sqrt(chi2.ppf([0.005, 0.995], 7) / 7)
     ratio = spread / se.mean(axis=0)
     assert np.all((ratio > lo) & (ratio < hi)), ratio
+
+
+def test_a_model_with_a_shape_simulates_its_second_order_form():
+    # the replicates diagnose draws: the filter's table simulates as the filter itself
+    term = MeasuredExcitation.from_table(OMEGA, 2.0 * filter_shape(OMEGA))
+    model = Model.from_spec(["paper", term])
+    theta = [0.5, 0.5, 25.0, 5.0, 50.0]
+    got = model.simulate(theta, duration=50.0, dt=0.02, rng=np.random.default_rng(1))
+    want = simulate({"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": WF,
+                     "zf": ZF}, duration=50.0, dt=0.02, rng=np.random.default_rng(1))  # fmt: skip
+    np.testing.assert_allclose(got.x, want.x, rtol=1e-3, atol=1e-3 * want.x.std())

@@ -104,7 +104,6 @@ def unbiased(state, model, components, theta, ql, n, seed, progress):
     :func:`hosid.inference.estimate.estimate` on ``n`` records a step drawn from ``seed``
     (default: one fixed by the record's samples).
     """
-    from ..model.simulate import simulate
     from .estimate import estimate, prepare_state
 
     names = model.param_names
@@ -113,7 +112,7 @@ def unbiased(state, model, components, theta, ql, n, seed, progress):
         seed = np.random.SeedSequence(int(state.record.hash[:16], 16))
 
     def simulated(th, rng):
-        rec = simulate(model.params(th), duration=state.record.duration, dt=state.dt, rng=rng)
+        rec = model.simulate(th, duration=state.record.duration, dt=state.dt, rng=rng)
         return prepare_state(rec, model, block_seconds=state.layout.T)
 
     def estimator(st):

@@ -107,6 +107,14 @@ class MeasuredExcitation(ShapeTerm):
             raise HosidInputError(f"{source}: the level must be positive at 4 frequencies")
         return cls(tuple(w.tolist()), tuple(s.tolist()), rational_fit(w, s))
 
+    def simulated(self, params: dict) -> dict:
+        r"""The simulator's parameters of a force with this shape: its second-order
+        form, :math:`S_0G` at :math:`\omega = 0`, ``wf`` and ``zf`` (the table itself has
+        no Markov simulator).
+        """
+        G, wf, zf = self.rational
+        return {**params, "S0": params["S0"] * G, "wf": wf, "zf": zf}
+
     def to_dict(self) -> dict:
         """The table, for a result's attributes (:meth:`from_table` reads it back)."""
         return {"omega": list(self.omega), "level": list(self.level)}

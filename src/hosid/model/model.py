@@ -232,10 +232,17 @@ class Model:
 
     # --------------------------------------------------------------- actions
     def simulate(self, theta, *, duration: float, dt: float, rng: np.random.Generator, **kw):
-        """Simulate a record of this model (:func:`hosid.model.simulate.simulate`)."""
+        """Simulate a record of this model (:func:`hosid.model.simulate.simulate`); a
+        measured excitation shape through its second-order form
+        (:meth:`hosid.model.measured.MeasuredExcitation.simulated`).
+        """
         from .simulate import simulate
 
-        return simulate(self.params(theta), duration=duration, dt=dt, rng=rng, **kw)
+        params = self.params(theta)
+        for t in self.terms:
+            if hasattr(t, "simulated"):
+                params = t.simulated(params)
+        return simulate(params, duration=duration, dt=dt, rng=rng, **kw)
 
     def __repr__(self) -> str:
         return f"Model({' + '.join(self.names)})"
