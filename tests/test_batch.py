@@ -278,3 +278,26 @@ def test_design_entropy_names_the_streams_and_later_options_keep_ids(records, tm
     assert diag_id(posterior="screen") != default != diag_id(candidate_gaps=False)
     with pytest.raises(HosidInputError, match="option posterior of diagnose"):
         diag_id(posterior="nuts")
+
+
+def test_excitation_shape_option_reads_the_table_and_keeps_old_ids(records, tmp_path, capsys):
+    path = str(records / "r0.npz")
+    shape = tmp_path / "shape.csv"
+    w = np.linspace(0.0, 200.0, 400)
+    np.savetxt(shape, np.c_[w, 49.0**2 / ((49.0 - w**2) ** 2 + (0.4 * 7.0 * w) ** 2 + 1.0)],
+               delimiter=",", header="omega,level", comments="")  # fmt: skip
+    default = record_tasks([path], analysis="estimate", options={})[0].prepare()
+    same = record_tasks([path], analysis="estimate", options={"excitation_shape": None})[0]
+    assert same.prepare().id == default.id  # a later option at its default keeps the id
+    task = record_tasks([path], analysis="estimate", options={"excitation_shape": str(shape)})[0]
+    task = task.prepare()
+    assert task.id != default.id
+    row = run_task(task, task.seed_sequence()).row
+    assert row["status"] == "ok", row.get("message")
+    plain = run_task(default, default.seed_sequence()).row
+    assert row["S0_mean"] != plain["S0_mean"]  # the shape moved the level
+    # a missing table stops the batch at once, in one line, with no output folder
+    out = tmp_path / "o"
+    argv = ["batch", "estimate", path, "--excitation-shape", str(tmp_path / "no.csv")]
+    assert main([*argv, "--out", str(out)]) == 2
+    assert "no such file" in capsys.readouterr().err and not out.exists()

@@ -42,6 +42,12 @@ def _flags(base) -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
             },
         ),
         (
+            "--excitation-shape",
+            "excitation_shape",
+            _ALL,
+            {"metavar": "CSV", "help": "the force spectrum's known shape (omega, level)"},
+        ),
+        (
             "--cost",
             "cost",
             _SPECTRAL,
@@ -175,6 +181,12 @@ def _options(args: argparse.Namespace, analysis: str) -> dict:
             if analysis not in where:
                 raise HosidInputError(f"{flag} does not apply to --analysis {analysis}")
             given[dest] = getattr(args, dest)
+    if given.get("excitation_shape") is not None:  # read once here: a bad table stops at once
+        from ..model.measured import read_shape
+
+        path = Path(given["excitation_shape"]).resolve()
+        read_shape(path)
+        given["excitation_shape"] = str(path)
     return options_for(analysis, given)
 
 

@@ -64,6 +64,7 @@ ANALYSES = ("fit", "estimate", "diagnose")
 OPTIONS: dict[str, dict[str, Any]] = {
     "fit": {
         "model": "paper",
+        "excitation_shape": None,
         "cost": None,
         "constrained": True,
         "n_walkers": 32,
@@ -75,6 +76,7 @@ OPTIONS: dict[str, dict[str, Any]] = {
     },
     "estimate": {
         "model": "paper",
+        "excitation_shape": None,
         "cost": None,
         "block_seconds": None,
         "omega_max": None,
@@ -83,6 +85,7 @@ OPTIONS: dict[str, dict[str, Any]] = {
     },
     "diagnose": {
         "model": "paper",
+        "excitation_shape": None,
         "candidates": None,
         "replicates": DEFAULT_REPLICATES,
         "alpha": 0.05,
@@ -93,7 +96,11 @@ OPTIONS: dict[str, dict[str, Any]] = {
     },
 }
 #: Options added after batches had run: left out of a task's id at their default.
-LATER: dict[str, tuple[str, ...]] = {"diagnose": ("posterior", "candidate_gaps")}
+LATER: dict[str, tuple[str, ...]] = {
+    "fit": ("excitation_shape",),
+    "estimate": ("excitation_shape",),
+    "diagnose": ("posterior", "candidate_gaps", "excitation_shape"),
+}
 #: The values an option may take (the others are checked by the analysis itself).
 CHOICES: dict[str, tuple[Any, ...]] = {
     "posterior": ("emcee", "screen"),

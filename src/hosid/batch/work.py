@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import HosidInputError, RecordRejected
 from ..model.model import Model
+from ..model.terms import TERMS
 from ..record import Record
 from ..verdicts import Check, overall
 from .tasks import OPTIONS, Task, child_seed
@@ -83,11 +84,24 @@ def _draw_stats(tree) -> tuple[dict[str, dict[str, float]], dict[str, Any]]:
     return params, scalars
 
 
+def _with_shape(options: Mapping) -> dict:
+    """``options`` with ``excitation_shape`` (a CSV path) read into the model."""
+    o = dict(options)
+    path = o.pop("excitation_shape", None)
+    if path is not None:
+        from ..model import Model
+        from ..model.measured import read_shape
+
+        o["model"] = Model.from_spec([*str(o["model"]).split(","), read_shape(path)])
+    return o
+
+
 def _fit(record: Record, options: Mapping, rng, truths, keep: bool):
     from ..inference import fit
     from ..output.results import attr
 
-    tree = fit(record, **options, seed=rng, progress=False, truths=truths, with_map=keep)
+    o = _with_shape(options)
+    tree = fit(record, **o, seed=rng, progress=False, truths=truths, with_map=keep)
     params, row = _draw_stats(tree)
     return params, row, tree, attr(tree, "checks") or [], list(attr(tree, "model"))
 
@@ -96,7 +110,7 @@ def _estimate(record: Record, options: Mapping, rng, truths, keep: bool):
     from ..inference import components_for, estimate
 
     t0 = time.perf_counter()
-    o = dict(options)
+    o = _with_shape(options)
     band = None if o["omega_max"] is None else (0.0, float(o["omega_max"]))
     comps = components_for(o["cost"], band=band, form=o["form"], domain=o["domain"])
     est = estimate(record, o["model"], comps, block_seconds=o["block_seconds"])
@@ -146,8 +160,9 @@ def _diagnose(record: Record, options: Mapping, rng, truths, keep: bool):
     from ..output.results import jsonable
 
     t0 = time.perf_counter()
-    settings = {k: options[k] for k in OPTIONS["diagnose"] if k != "model"}
-    d = diagnose(record, options["model"], rng=rng, **settings)
+    o = _with_shape(options)
+    settings = {k: o[k] for k in OPTIONS["diagnose"] if k in o and k != "model"}
+    d = diagnose(record, o["model"], rng=rng, **settings)
     rep = d.report()
     tree = d.final.tree  # None with posterior="screen"
     if tree is not None:
@@ -249,7 +264,7 @@ def run_task(
             for name, stats in params.items():
                 row.update({f"{name}_{k}": v for k, v in stats.items()})
             if velocity is not None and "a1eq" in params:
-                m = Model.from_spec(model)
+                m = Model.from_spec([n for n in model if n in TERMS])  # the drift's terms
                 theta = [truths.get(n, 0.0) for n in m.param_names]
                 row["sigma_v"] = float(np.std(velocity))
                 row["true_a1eq"] = float(m.equivalent_damping(theta, row["sigma_v"]))
