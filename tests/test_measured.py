@@ -88,6 +88,8 @@ def test_estimate_does_not_depend_on_the_tables_scale(record):
     ],
 )
 def test_bad_tables_get_one_clear_error(tmp_path, text, message):
+    with pytest.raises(HosidInputError, match="--excitation-shape"):
+        Model.from_spec("paper,measured_excitation")
     path = tmp_path / "shape.csv"
     path.write_text(text)
     with pytest.raises(HosidInputError, match=message):

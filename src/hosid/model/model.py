@@ -105,6 +105,11 @@ class Model:
                 names.extend(ALIASES[key])
             elif key in TERMS:
                 names.append(key)
+            elif key == "measured_excitation":
+                raise HosidInputError(
+                    "measured_excitation is made from its table: give --excitation-shape "
+                    "FILE.csv (library: hosid.model.measured.read_shape)"
+                )
             else:
                 raise HosidInputError(f"unknown model term {key!r}; valid names: {_valid_names()}")
         if not names:
