@@ -16,8 +16,8 @@ diagnosed with base ``paper`` (every candidate of the white model, the new
     python analyses/excitation_diagnose.py --records 2     # a first pass
 
 Record ``k`` of a cell is seeded by ``SeedSequence([SEED, crc32(cell), k])``.  The rows
-(``results/excitation_diagnose/diagnose.csv``) are ``diagnose_power``'s.  Runs one record
-of every cell a pass, so a stopped run has every cell.
+(``results/excitation_diagnose/diagnose.csv``) are ``diagnose_power``'s.  Runs the white
+records first, then one record of every cell a pass, so a stopped run has every cell.
 """
 
 from __future__ import annotations
@@ -51,7 +51,9 @@ CELLS = {
 
 
 def rows(records: int | None, replicates: int) -> list[dict]:
-    """One ``diagnose_power.run_one`` row per record, one record of every cell a pass."""
+    """One ``diagnose_power.run_one`` row per record: the white records first (fast: with
+    no candidate near the threshold diagnose stops before its replicates), then one
+    record of every other cell a pass."""
     out = []
     for cell, (system, effect, extra, n) in CELLS.items():
         params, duration, dt = SYSTEMS[system]
@@ -62,7 +64,7 @@ def rows(records: int | None, replicates: int) -> list[dict]:
                  "truth": {**params, **extra}, "duration": duration, "dt": dt,
                  "replicates": replicates}
             )  # fmt: skip
-    return sorted(out, key=lambda r: (r["record"], r["cell"]))
+    return sorted(out, key=lambda r: (bool(r["effects"]), r["record"], r["cell"]))
 
 
 def summarize(results: list[dict], out: Path) -> Path:

@@ -130,6 +130,11 @@ def test_estimate_corrects_an_impulsive_record_and_says_so():
     # the same record gives the same estimate (the simulations' seed is the record's)
     again = estimate(rec, IMP, force=True, simulations=2)
     np.testing.assert_array_equal(again.theta, est.theta)
+    # a white record: many impulses a sample at the estimate, nothing to correct
+    white = simulate(PAPER, duration=300.0, rng=np.random.default_rng(9))
+    est = estimate(white, IMP, force=True, simulations=2)
+    assert est.values["rate"] * white.dt > 1.0
+    assert not any("sampling bias" in n for n in est.notes)
 
 
 @pytest.mark.slow

@@ -19,12 +19,16 @@ iterates
 (``iterations`` times; the bias grows with the impulses' area, which the raw estimate
 understates, so one step falls short), the bias of a positive parameter (``S0``,
 ``rate``) taken as a ratio.  This is the bias-corrected estimator of indirect inference
-(Gourieroux, Monfort and Renault 1993; MacKinnon and Smith 1998).  The quasi-likelihood
-is moved with it, :math:`\tilde\ell(\theta) = \ell(\theta + b)`, so that its mode is the
-corrected estimate and the sampler draws around it, and it is widened by :math:`1 + 1/n`
-for the noise of :math:`b`.  Measured on 3 records of the independent simulator at 0.5
-impulses a second, one step: :math:`a_2` 21.6 -> 23.2, :math:`S_0` 82 -> 95, the rate
-0.58 -> 0.48 (truth 25, 100, 0.5).
+(Gourieroux, Monfort and Renault 1993; MacKinnon and Smith 1998).  It is made only where
+single impulses show, fewer than one a sample at the estimate: with more the force is
+Gaussian at the record's scale, the closed forms hold, and the correction would only
+widen the posterior (on 6 white records by the 6 % of its :math:`\sqrt{1 + 1/n}`).  The
+quasi-likelihood is moved with it, :math:`\tilde\ell(\theta) = \ell(\theta + b)`, so
+that its mode is the corrected estimate and the sampler draws around it, and it is
+widened by :math:`1 + 1/n` for the noise of :math:`b`.  Measured on 40 records of the
+independent simulator (``analyses/impulse_study.py``): the paper oscillator's drift
+unbiased at 0.5-2 impulses a second (``a2`` 24.2-25.2 against 21.3-24.3 uncorrected),
+``S0`` 100-103 (84-94), pooled 90 % coverage of the drift 0.90 (0.69).
 """
 
 from __future__ import annotations

@@ -234,10 +234,11 @@ def estimate(
     A :class:`~hosid.record.Record` is checked first (:func:`hosid.screen.check_record`);
     ``force`` estimates a record that fails a check anyway, ``unit`` names the
     displacement's unit in the checks' messages, ``checks`` passes the record's checks
-    when the caller already made them.  With ``impulsive_excitation`` the estimate is
-    corrected for its sampling bias by ``simulations`` records of the model a step
-    (:mod:`hosid.inference.correction`; 0: not), drawn from ``seed`` (default: a seed
-    fixed by the record's samples), with a progress bar when ``progress``.
+    when the caller already made them.  With ``impulsive_excitation`` and fewer than one
+    impulse a sample, the estimate is corrected for its sampling bias by ``simulations``
+    records of the model a step (:mod:`hosid.inference.correction`; 0: not), drawn from
+    ``seed`` (default: a seed fixed by the record's samples), with a progress bar when
+    ``progress``.
 
     Raises
     ------
@@ -289,7 +290,9 @@ def estimate(
     if best is None:
         raise failure
     J_best, theta, ql, theta0 = best
-    if model.has("rate") and simulations:  # the impulses' sampling bias (.correction)
+    # the impulses' sampling bias (.correction), where single impulses show: fewer than
+    # one a sample (more make a force Gaussian at the record's scale, restored exactly)
+    if model.has("rate") and simulations and theta[model.index("rate")] * state.dt < 1.0:
         theta, ql = unbiased(state, model, components, theta, ql, simulations, seed, progress)
         J_best, solutions = float(-2.0 * ql(theta)), [theta]
         notes.append(
