@@ -29,7 +29,6 @@ import argparse
 import csv
 import json
 import math
-import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -229,14 +228,31 @@ def arguments(argv, doc: str, cases, work: Path, results: Path) -> argparse.Name
 
 
 def keep_tables(tables: dict[str, Path], work: Path, out: Path) -> dict[str, Path]:
-    """The result tables that exist (a model not run yet is left out), copied to ``out``."""
+    """The result tables that exist (a model not run yet is left out), merged into
+    ``out``: a run of some cases replaces their rows and keeps the other cases' rows.
+    """
     tables = {m: t for m, t in tables.items() if t.is_file()}
     if not tables:
         raise SystemExit(f"{work}: no results yet; run the study first")
     out.mkdir(parents=True, exist_ok=True)
+    kept = {}
     for m, t in tables.items():
-        shutil.copyfile(t, out / f"{m}.csv")
-    return tables
+        with t.open(newline="") as fh:
+            new = list(csv.DictReader(fh))
+        dest = out / f"{m}.csv"
+        old = []
+        if dest.is_file():
+            with dest.open(newline="") as fh:
+                old = list(csv.DictReader(fh))
+        fresh = {r["record"] for r in new}
+        rows = [r for r in old if r["record"] not in fresh] + new
+        fields = list(new[0]) if new else list(old[0])
+        with dest.open("w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=fields, lineterminator="\n", extrasaction="ignore")
+            w.writeheader()
+            w.writerows(rows)
+        kept[m] = dest
+    return kept
 
 
 def main(argv: Sequence[str] | None = None) -> Path:
