@@ -61,10 +61,9 @@ def _model(args):
     """The model of ``--model``, with the measured shape of ``--excitation-shape``."""
     if getattr(args, "excitation_shape", None) is None:
         return args.model
-    from hosid.model import Model
-    from hosid.model.measured import read_shape
+    from hosid.model.measured import with_shape
 
-    return Model.from_spec([*args.model.split(","), read_shape(args.excitation_shape)])
+    return with_shape(args.model, args.excitation_shape)
 
 
 def _print_fit(summary: dict) -> None:

@@ -89,10 +89,9 @@ def _with_shape(options: Mapping) -> dict:
     o = dict(options)
     path = o.pop("excitation_shape", None)
     if path is not None:
-        from ..model import Model
-        from ..model.measured import read_shape
+        from ..model.measured import with_shape
 
-        o["model"] = Model.from_spec([*str(o["model"]).split(","), read_shape(path)])
+        o["model"] = with_shape(o["model"], path)
     return o
 
 

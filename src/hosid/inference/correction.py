@@ -43,7 +43,7 @@ from ..errors import HosidInputError
 from ..progress import Stages, bar
 from .gmm import QuasiLikelihood
 
-__all__ = ["DEFAULT_ITERATIONS", "DEFAULT_SIMULATIONS", "bias", "shifted", "unbiased"]
+__all__ = ["DEFAULT_ITERATIONS", "DEFAULT_SIMULATIONS", "bias", "moved", "shifted", "unbiased"]
 
 #: Records simulated for each evaluation of the bias.
 DEFAULT_SIMULATIONS = 8
@@ -78,20 +78,23 @@ def bias(
                 progress()
         mean = np.mean(draws, axis=0)
         beta = np.where(positive, np.log(np.where(positive, mean / theta, 1.0)), mean - theta)
-        theta = np.where(positive, theta_hat * np.exp(-beta), theta_hat - beta)
+        theta = moved(theta_hat, -beta, positive)
     return beta
+
+
+def moved(theta, beta, positive) -> np.ndarray:
+    r""":math:`\theta + \beta`, or :math:`\theta e^{\beta}` where ``positive``."""
+    th = np.asarray(theta, dtype=float)
+    return np.where(positive, th * np.exp(beta), th + beta)
 
 
 def shifted(ql: QuasiLikelihood, beta: np.ndarray, positive: np.ndarray, n: int):
     r""":math:`\ell(\theta + b)` (module docstring), widened by :math:`1 + 1/n`."""
     beta = np.asarray(beta, dtype=float)
 
-    def move(theta):
-        th = np.asarray(theta, dtype=float)
-        return np.where(positive, th * np.exp(beta), th + beta)
-
     moments = [
-        dataclasses.replace(m, mean=lambda theta, f=m.mean: f(move(theta))) for m in ql.moments
+        dataclasses.replace(m, mean=lambda theta, f=m.mean: f(moved(theta, beta, positive)))
+        for m in ql.moments
     ]
     info = {
         **ql.info,
@@ -102,18 +105,18 @@ def shifted(ql: QuasiLikelihood, beta: np.ndarray, positive: np.ndarray, n: int)
     )
 
 
-def unbiased(state, model, components, theta, ql, n, seed, progress):
+def unbiased(state, model, components, theta, ql, n, progress):
     """The estimate ``theta`` of the record's ``state`` and its quasi-likelihood ``ql``,
     corrected (module docstring) by :func:`bias` of
-    :func:`hosid.inference.estimate.estimate` on ``n`` records a step drawn from ``seed``
-    (default: one fixed by the record's samples).
+    :func:`hosid.inference.estimate.estimate` on ``n`` records a step, drawn from a seed
+    fixed by the record's samples (the estimate stays a function of the record); the
+    positive parameters (log-uniform priors) are corrected as ratios.
     """
-    from .estimate import estimate, prepare_state
+    from .estimate import estimate, log_params, prepare_state
 
-    names = model.param_names
-    positive = np.array([p in ("S0", "rate", "wc", "wf", "zf") for p in names])
-    if seed is None:  # the estimate stays a function of the record
-        seed = np.random.SeedSequence(int(state.record.hash[:16], 16))
+    positive = np.zeros(len(theta), dtype=bool)
+    positive[log_params(model, model.default_priors(state.scales))] = True
+    seed = np.random.SeedSequence(int(state.record.hash[:16], 16))
 
     def simulated(th, rng):
         rec = model.simulate(th, duration=state.record.duration, dt=state.dt, rng=rng)
@@ -135,5 +138,4 @@ def unbiased(state, model, components, theta, ql, n, seed, progress):
     finally:
         if not isinstance(progress, Stages):
             b.close()
-    moved = np.where(positive, theta * np.exp(-beta), theta - beta)
-    return moved, shifted(ql, beta, positive, n)
+    return moved(theta, -beta, positive), shifted(ql, beta, positive, n)

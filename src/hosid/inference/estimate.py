@@ -223,7 +223,6 @@ def estimate(
     unit: str = "m",
     checks: Sequence[Check] | None = None,
     simulations: int = DEFAULT_SIMULATIONS,
-    seed: int | np.random.SeedSequence | None = None,
     progress: bool | Stages = False,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` and its mode (module docstring),
@@ -236,9 +235,8 @@ def estimate(
     displacement's unit in the checks' messages, ``checks`` passes the record's checks
     when the caller already made them.  With ``impulsive_excitation`` and fewer than one
     impulse a sample, the estimate is corrected for its sampling bias by ``simulations``
-    records of the model a step (:mod:`hosid.inference.correction`; 0: not), drawn from
-    ``seed`` (default: a seed fixed by the record's samples), with a progress bar when
-    ``progress``.
+    records of the model a step (:mod:`hosid.inference.correction`; 0: not; their seed
+    is fixed by the record's samples), with a progress bar when ``progress``.
 
     Raises
     ------
@@ -293,7 +291,7 @@ def estimate(
     # the impulses' sampling bias (.correction), where single impulses show: fewer than
     # one a sample (more make a force Gaussian at the record's scale, restored exactly)
     if model.has("rate") and simulations and theta[model.index("rate")] * state.dt < 1.0:
-        theta, ql = unbiased(state, model, components, theta, ql, simulations, seed, progress)
+        theta, ql = unbiased(state, model, components, theta, ql, simulations, progress)
         J_best, solutions = float(-2.0 * ql(theta)), [theta]
         notes.append(
             "the estimate is corrected for the impulses' sampling bias (indirect inference: "

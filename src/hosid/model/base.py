@@ -72,6 +72,12 @@ class Term:
         """Weakly informative priors from the record's scales."""
         raise NotImplementedError
 
+    def simulated(self, params: dict) -> dict:
+        """The simulator's parameters for ``params`` (the term's own, unless the
+        simulator needs them in another form).
+        """
+        return params
+
     def __repr__(self) -> str:
         return f"<Term {self.name}: {', '.join(self.params)}>"
 

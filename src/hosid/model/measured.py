@@ -35,8 +35,9 @@ from scipy.optimize import least_squares
 from ..errors import HosidInputError
 from .excitation import ShapeTerm
 from .priors import LogUniform
+from .simulate import narrowband_shape
 
-__all__ = ["MeasuredExcitation", "rational_fit", "read_shape", "shape_attrs"]
+__all__ = ["MeasuredExcitation", "rational_fit", "read_shape", "shape_attrs", "with_shape"]
 
 
 def rational_fit(omega: np.ndarray, level: np.ndarray) -> tuple[float, float, float]:
@@ -51,9 +52,7 @@ def rational_fit(omega: np.ndarray, level: np.ndarray) -> tuple[float, float, fl
     y = np.log(np.interp(w, omega[pos], level[pos]))
 
     def resid(q):  # q = log wf, log zf, log G
-        wf, zf = np.exp(q[0]), np.exp(q[1])
-        den = (1.0 - (w / wf) ** 2) ** 2 + (2.0 * zf * w / wf) ** 2
-        return y - q[2] + np.log(den)
+        return y - q[2] - np.log(narrowband_shape(np.exp(q[0]), np.exp(q[1]))(w))
 
     best = None
     for wf in np.geomspace(w[0] / 3.0, 3.0 * w[-1], 60):
@@ -139,10 +138,13 @@ class MeasuredExcitation(ShapeTerm):
     def table(self, omega) -> np.ndarray:
         r""":math:`\ell(|\omega|)`: the table inside its range, the rational form outside."""
         a = np.abs(np.asarray(omega, dtype=float))
-        G, wf, zf = self.rational
-        out = G / ((1.0 - (a / wf) ** 2) ** 2 + (2.0 * zf * a / wf) ** 2)
         inside = (a >= self.omega[0]) & (a <= self.omega[-1])
-        return np.where(inside, np.interp(a, self.omega, self.level), out)
+        return np.where(inside, np.interp(a, self.omega, self.level), self.second_order(a))
+
+    def second_order(self, omega) -> np.ndarray:
+        r"""The table's second-order form :math:`G\,L_f(\omega)` (module docstring)."""
+        G, wf, zf = self.rational
+        return G * narrowband_shape(wf, zf)(np.asarray(omega, dtype=float))
 
     def check_band(self, lo: float, hi: float) -> None:
         """Raise unless the table covers ``[lo, hi]`` (rad/s) with a positive level.
@@ -170,9 +172,7 @@ class MeasuredExcitation(ShapeTerm):
         ``omega`` (0 for a table that is a second-order filter).
         """
         a = np.abs(np.asarray(omega, dtype=float))
-        G, wf, zf = self.rational
-        rat = G / ((1.0 - (a / wf) ** 2) ** 2 + (2.0 * zf * a / wf) ** 2)
-        return float(np.sqrt(np.mean(np.log(self.table(a) / rat) ** 2)))
+        return float(np.sqrt(np.mean(np.log(self.table(a) / self.second_order(a)) ** 2)))
 
     def default_priors(self, scales):
         r"""No parameter of its own; the level's prior is moved by the table's scale:
@@ -215,6 +215,13 @@ def read_shape(path: str | Path) -> MeasuredExcitation:
             f"excitation shape {str(path)!r}: omega and level must be numbers"
         ) from None
     return MeasuredExcitation.from_table(w, s, source=f"excitation shape {str(path)!r}")
+
+
+def with_shape(spec: str, path: str | Path):
+    """The model of the spec ``spec`` with the measured shape in the CSV ``path``."""
+    from .model import Model
+
+    return Model.from_spec([*str(spec).split(","), read_shape(path)])
 
 
 def shape_attrs(model) -> dict:

@@ -245,8 +245,7 @@ class Model:
 
         params = self.params(theta)
         for t in self.terms:
-            if hasattr(t, "simulated"):
-                params = t.simulated(params)
+            params = t.simulated(params)
         return simulate(params, duration=duration, dt=dt, rng=rng, **kw)
 
     def __repr__(self) -> str:
