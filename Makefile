@@ -6,7 +6,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv demo test lint test-slow bench analyses clean
+.PHONY: venv demo test lint test-slow bench analyses paper peers clean
 
 venv: $(STAMP)
 
@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 		"$$python" -m venv $(VENV); \
 	fi; \
 	$(PY) -m pip install --upgrade --quiet pip; \
-	$(PY) -m pip install --quiet -e '.[test]'; \
+	$(PY) -m pip install --quiet -e '.[test,analyses]'; \
 	touch $@
 
 demo: $(STAMP)
@@ -41,6 +41,17 @@ bench: $(STAMP)
 		echo "make bench: no benchmarks/*.py yet" >&2; exit 1; fi
 	$(PY) -m pytest -q --benchmark-only benchmarks
 
+# The paper's Figures 1-8 by today's engine and its claims beside the measured numbers
+# (analyses/out/paper/paper.md; about 2 minutes on 2 cores).
+paper: $(STAMP)
+	$(PY) analyses/paper_figures.py
+
+# hosid beside the Kramers-Moyal and IV drift regressions, covariance-driven SSI and the
+# paper's own estimators on the same 2 x 20 records (analyses/out/peers/peers.md; it
+# resumes: delete records.csv to redo it).
+peers: $(STAMP)
+	$(PY) analyses/peers.py
+
 # The statistical studies (hours on 2 cores; each resumes where it stopped): the
 # information limit per regime, the efficiency and calibration of the default fit and of
 # --cost J4A, the record checks' false alarms and detections, the diagnose confusion and
@@ -54,6 +65,8 @@ analyses: $(STAMP)
 	$(PY) analyses/diagnose_power.py
 	$(PY) analyses/silverbox.py
 	$(PY) analyses/silverbox_coverage.py
+	$(PY) analyses/paper_figures.py
+	$(PY) analyses/peers.py
 
 clean:
 	rm -rf $(VENV) demo-out analyses/out .pytest_cache .benchmarks build src/*.egg-info

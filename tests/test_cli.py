@@ -116,7 +116,7 @@ def test_estimate_prints_a_table_and_writes_json(workdir, capsys):
         "cubic_stiffness",
     ]
     assert set(data["estimates"]) == set(data["sd"]) == {*PAPER_PARAMS, "a1eq"}
-    assert data["hansen"]["df"] == 4
+    assert data["hansen"]["df"] == 2
     assert data["state"]["blocks"] == 24
     # the 500 s record recovers the truth within 3 sd (measured |z| < 1.3)
     for k, v in PAPER_PARAMS.items():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import hosid.inference.sampler as S
-from hosid.components import J2, Identities
+from hosid.components import J2, ForceKurtosis, Identities, Level
 from hosid.components.polyspectral import J4
 from hosid.errors import HosidInputError, RecordRejected
 from hosid.inference import components_for, estimate, fit
@@ -45,8 +45,9 @@ def test_estimate_recovers_the_paper_oscillator(paper_estimate):
     z = _z(est, PAPER_PARAMS)
     # one 2000 s record; measured z: a1 0.07, n1 0.30, a2 0.87, n2 -1.84, S0 0.87
     assert all(abs(v) < 3 for v in z.values()), z
-    # 9 equations (4 identities + 5 J2), 5 parameters; measured J 10.2, p = 0.038
-    assert est.test["df"] == 4
+    # 7 equations (4 identities, J2's level, the level above it, the kurtosis), 5
+    # parameters
+    assert est.test["df"] == 2
     assert est.test["p_value"] > 0.001
     # the sd are near the information limit (NOTES.md: a1 0.221, n1 0.0192, a2 0.90,
     # n2 0.236); measured a1 0.24, n1 0.021, a2 1.05, n2 0.26
@@ -64,8 +65,8 @@ def test_estimate_attributes(paper_estimate, paper_record):
     assert est.sigma_v == pytest.approx(math.hypot(est.state.scales.sigma_v, math.sqrt(s2)))
     assert est.scales().sigma_v == est.sigma_v
     assert est.state.record is paper_record
-    assert list(est.ql.slices) == ["identities", "J2"]
-    assert est.ql.info["blocks"] == 97 and est.ql.info["equations"] == 9
+    assert list(est.ql.slices) == ["identities", "J2", "level", "kurtosis"]
+    assert est.ql.info["blocks"] == 97 and est.ql.info["equations"] == 7
 
 
 @pytest.mark.parametrize(("cost", "df"), [("J2", 2), ("J4A", 5), ("J4B", 4)])
@@ -125,7 +126,7 @@ def test_estimate_accepts_a_state_and_a_start(paper_record, paper_estimate):
 
 def test_components_for():
     default = components_for()
-    assert [type(c) for c in default] == [Identities, J2]
+    assert [type(c) for c in default] == [Identities, J2, Level, ForceKurtosis]
     assert default[0].which == "all"
     j4 = components_for("J4B", form="printed", domain="reduced", band=(0.0, 30.0))
     assert [type(c) for c in j4] == [Identities, J2, J4]
@@ -299,7 +300,7 @@ def test_fit_returns_the_documented_tree(short_fit):
     assert set(post.data_vars) == {*PAPER.param_names, "a1eq"}
     assert post.sizes["chain"] == 32 and 0 < post.sizes["draw"] < 300
     assert set(tree["sample_stats"].data_vars) == {"lp", "log_prior"}
-    assert set(tree["log_likelihood"].data_vars) == {"identities", "J2"}
+    assert set(tree["log_likelihood"].data_vars) == {"identities", "J2", "level", "kurtosis"}
     assert set(tree["prior"].data_vars) == {*PAPER.param_names, "a1eq"}
     assert set(tree["observed_data"].data_vars) == {"Sxx", "force"}
     assert set(tree["constant_data"].data_vars) == {"theta_hat", "laplace_cov"}
@@ -316,7 +317,7 @@ def test_fit_attributes(short_fit, short_paper_record):
     calibration = json.loads(attrs["calibration_json"])
     assert calibration["method"] == "gmm" and calibration["blocks"] == 24
     assert json.loads(attrs["model_json"]) == list(PAPER.names)
-    assert json.loads(attrs["components_json"]) == ["identities", "J2"]
+    assert json.loads(attrs["components_json"]) == ["identities", "J2", "level", "kurtosis"]
     assert json.loads(attrs["truths_json"]) == PAPER_PARAMS
     assert json.loads(attrs["sampler_json"])["steps"] == 300
     assert attrs["constrained"] == 1 and attrs["cost"] == "default"
@@ -326,7 +327,7 @@ def test_fit_blobs_split_the_log_posterior(short_fit):
     t = short_fit
     lp = t["sample_stats"]["lp"].values
     parts = t["sample_stats"]["log_prior"].values + sum(
-        t["log_likelihood"][c].values for c in ("identities", "J2")
+        t["log_likelihood"][c].values for c in ("identities", "J2", "level", "kurtosis")
     )
     # lp is in the sampling coordinates: log S0 adds its Jacobian log S0
     np.testing.assert_allclose(lp - parts, np.log(t["posterior"]["S0"].values), rtol=1e-10)

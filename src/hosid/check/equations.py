@@ -31,7 +31,8 @@ def components_for_test(model: Model, effect: str) -> list[Component]:
     ext = model.with_term(effect)
     if any(ext.has(p) for p in TAIL_PARAMS):
         comps.append(Tail())
-    if Spectrum(ext).whitening or ext.has("rate"):  # as the fit of these models has
+    has_kurtosis = any(isinstance(c, ForceKurtosis) for c in comps)
+    if (Spectrum(ext).whitening or ext.has("rate")) and not has_kurtosis:  # as the fit has
         comps.append(ForceKurtosis())
     return comps
 

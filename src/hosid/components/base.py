@@ -72,6 +72,17 @@ class Moments:
         """Number of estimating equations."""
         return len(self.labels)
 
+    @classmethod
+    def empty(cls, component: str, n_blocks: int, why: str) -> Moments:
+        """No equation: the component does not hold here (``why``, in ``info``)."""
+        return cls(
+            component,
+            (),
+            lambda theta: np.zeros((*np.shape(theta)[:-1], 0)),
+            np.zeros((n_blocks, 0)),
+            {"skipped": why},
+        )
+
 
 class Component(Protocol):
     """A likelihood component: ``name`` and :meth:`prepare`."""

@@ -24,7 +24,7 @@ gives equations along the damping and :math:`S_0` only):
 =========  ===================================================  ======================
 ``cost``   components                                           what it is
 =========  ===================================================  ======================
-``None``   identities (all drift terms) + J2                    the default: efficient
+``None``   identities (all drift terms) + J2 + level + kurtosis the default: efficient
 ``"J2"``   identities (restoring terms) + J2                    paper's second order
 ``"J4A"``  identities (restoring terms) + J2 + J4A              paper's protocol, eq 59
 ``"J4B"``  identities (restoring terms) + J2 + J4B              eq 62-63
@@ -43,6 +43,7 @@ import numpy as np
 from ..components.base import Component, restoration
 from ..components.cumulant import ForceKurtosis
 from ..components.identities import Identities
+from ..components.level import Level
 from ..components.spectral import J2, default_band
 from ..components.tail import TAIL_PARAMS, Tail
 from ..errors import HosidInputError
@@ -91,7 +92,7 @@ def components_for(
     if form not in ("scaled", "printed"):
         raise HosidInputError(f"unknown form {form!r}: 'scaled' or 'printed'")
     if cost is None:
-        return [Identities(), J2(band=band, form=form)]
+        return [Identities(), J2(band=band, form=form, with_level=True), Level(), ForceKurtosis()]
     if cost not in COSTS:
         raise HosidInputError(f"unknown cost {cost!r}: choose from {', '.join(COSTS)}")
     comps: list[Component] = [Identities("restoring"), J2(band=band, form=form)]

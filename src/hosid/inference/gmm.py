@@ -179,6 +179,7 @@ def quasi_likelihood(
         If the blocks are too few for the number of equations (``B <= k + 2``), the
         covariance is singular, or ``covariance`` holds other equations.
     """
+    moments = [m for m in moments if m.k]  # a component may offer no equation here
     U = np.concatenate([m.influence for m in moments], axis=1)
     B, k = U.shape
     if B <= k + 2:
