@@ -75,3 +75,17 @@ def test_default_set_takes_the_level_for_a_white_force_only():
     band = hosid.estimate(rec, "paper", components_for(band=(0.0, 20.0)))
     labels = [lab for m in band.ql.moments for lab in m.labels]
     assert "J2 d/da1" in labels
+
+
+def test_level_stands_aside_when_every_block_touches_a_segment_end():
+    rec = hosid.simulate(PAPER, duration=600.0, dt=0.02, rng=np.random.default_rng(4))
+    model = Model.from_spec("paper")
+    M = 256  # one block a segment, at the segment's start
+    pieces = [rec.x[i : i + M + M // 2] for i in range(0, rec.n - 2 * M, M + M // 2)]
+    short = hosid.Record.from_segments(pieces, rec.dt)
+    state = prepare_state(short, model, block_seconds=M * rec.dt)
+    assert state.layout.B >= 24 and end_blocks(state).all()
+    why = Level().skipped(state, model)
+    assert why is not None and "segments' ends" in why
+    theta = np.array([PAPER[p] for p in model.param_names])
+    assert Level().prepare(state, model, theta).k == 0

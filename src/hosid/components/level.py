@@ -53,7 +53,6 @@ from ..model.model import Model
 from ..spectra.blocks import windowed_fft
 from ..state import RecordState
 from .base import Moments, _feature, restoration
-from .excitation import Excitation
 from .spectral import default_band
 
 __all__ = ["Level", "alias_factor"]
@@ -68,8 +67,9 @@ TOP = 0.9
 #: at S0 >= 400 show a "floor" at 130-290 rad/s (the aliases near the Nyquist frequency),
 #: and a fifth would drop the level from most of them; the efficiency study ran with a half.
 FLOOR = 0.5
-#: Fewer bins than this: no equation.
+#: Fewer bins, or blocks away from the segments' ends, than these: no equation.
 MIN_BINS = 16
+MIN_BLOCKS = 8
 #: Samples at each end of a segment whose derivatives the spectral derivative's
 #: periodic extension spoils (module docstring).
 GUARD = 32
@@ -127,6 +127,9 @@ class Level:
         n = self.bins(state).size
         if n < MIN_BINS:
             return f"{n} bins above J2's band"
+        inner = int((~end_blocks(state)).sum())
+        if inner < MIN_BLOCKS:
+            return f"{inner} blocks away from the segments' ends"
         return None
 
     def prepare(self, state: RecordState, model: Model, pilot: np.ndarray) -> Moments:
@@ -134,7 +137,6 @@ class Level:
         model does not hold (``Moments.k == 0``).
         """
         th0 = np.asarray(pilot, dtype=float)
-        exc = Excitation(model, th0, state.scales.sigma_v, state.scales.sigma_x)
         L = state.layout
         bins = self.bins(state)
         why = self.skipped(state, model)
@@ -151,7 +153,7 @@ class Level:
         Q = np.einsum("ibk,jbk,k->bij", Y, Y.conj(), weight).real / K  # (B, F, F)
         keep = ~end_blocks(state)
         Qbar = Q[keep].mean(axis=0)
-        i_S0 = exc.i_S0
+        i_S0 = model.index("S0")
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
