@@ -56,6 +56,7 @@ from hosid.errors import HosidInputError
 from hosid.inference.estimate import prepare_state
 from hosid.model import Model
 from hosid.spectra.domains import trispectral_domain
+from hosid.state import RecordState
 
 SQRT_8_PI = math.sqrt(8.0 / math.pi)
 PARAMS = ("a1", "n1", "a2", "n2", "S0")
@@ -88,6 +89,15 @@ def moments(state) -> dict[str, float]:
     return {"a2": float(a2), "n2": float(n2)}
 
 
+def record_state(record, block_seconds: float | None = BLOCK_SECONDS) -> RecordState:
+    """``record``'s state with the paper's block (a state passes through): every model
+    here is white, centred and noise-free, so one state serves them all.
+    """
+    if isinstance(record, RecordState):
+        return record
+    return prepare_state(record, Model.from_spec("paper"), block_seconds=block_seconds)
+
+
 def point_estimates(
     record,
     names=ESTIMATORS,
@@ -103,26 +113,20 @@ def point_estimates(
     frequency).
     """
     out: dict[str, dict[str, float]] = {}
-    state = prepare_state(record, Model.from_spec("paper"), block_seconds=block_seconds)
+    state = record_state(record, block_seconds)  # the same for every estimator's model
     sigma_v = state.scales.sigma_v
     for name in names:
         row = dict.fromkeys((*PARAMS, "a1eq"), math.nan)
         if name == "moments":
             row.update(moments(state))
         elif name == "J4A line":
-            kw = {"omega_max": omega_max, "block_seconds": block_seconds}
-            j2 = out.get("J2") or point_estimates(record, ("J2",), **kw)["J2"]
-            row.update(j4a_line(record, j2, sigma_v, **kw))
+            j2 = out.get("J2") or point_estimates(state, ("J2",), omega_max=omega_max)["J2"]
+            row.update(j4a_line(state, j2, sigma_v, omega_max=omega_max))
         else:
             spec, comps = _components(name, omega_max)
             model = Model.from_spec(spec)
-            st = (
-                state
-                if spec == "paper"
-                else prepare_state(record, model, block_seconds=block_seconds)
-            )
             try:
-                values = hosid.estimate(st, model, comps, band_limit=False).values
+                values = hosid.estimate(state, model, comps, band_limit=False).values
             except HosidInputError:
                 values = None
             if values is not None and spec == LINEAR_DAMPING:
@@ -150,7 +154,7 @@ def j4a_line(
     n1 = np.linspace(0.0, a1eq / (SQRT_8_PI * sigma_v), LINE_POINTS)
     a1 = a1eq - n1 * SQRT_8_PI * sigma_v
     theta = {**j2, "a1": a1eq, "n1": 0.0}
-    costs = PrintedCosts(record, theta, omega_max=omega_max, block_seconds=block_seconds)
+    costs = PrintedCosts(record_state(record, block_seconds), theta, omega_max=omega_max)
     i = int(np.argmin(costs.j4a(a1, n1)))
     return {
         **{k: j2[k] for k in ("a2", "n2", "S0")},
@@ -178,7 +182,7 @@ class PrintedCosts:
         block_seconds: float = BLOCK_SECONDS,
     ):
         model = Model.from_spec("paper")
-        state = prepare_state(record, model, block_seconds=block_seconds)
+        state = record_state(record, block_seconds)
         L, win = state.layout, state.window
         self.k2, self.S0 = win.k2, float(theta["S0"])
         th = np.array([theta[p] for p in model.param_names], dtype=float)

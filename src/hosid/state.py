@@ -195,15 +195,17 @@ class RecordState:
         seg = np.searchsorted(np.array(self.record.segments), first, side="right") - 1
         return first, np.minimum(first + self.layout.M, stops[seg] - 1)
 
-    def block_fft(self, key, signal_fn, bins: np.ndarray) -> np.ndarray:
+    def block_fft(self, key, signal_fn, bins: np.ndarray, window=None) -> np.ndarray:
         """Windowed block FFT of a signal built from the blocks, cached under ``key``.
 
-        ``signal_fn(blocks) -> (B, M)``; the result is ``(B, len(bins))``.
+        ``signal_fn(blocks) -> (B, M)``; the result is ``(B, len(bins))``; ``window``:
+        the state's own (default) or another (e.g. ``"boxcar"``).
         """
-        full = (key, bins.tobytes())
+        win = self.window if window is None else get_window(window)
+        full = (key, bins.tobytes(), win.name)
         if full not in self._fft_cache:
             y = signal_fn(self.blocks)
-            self._fft_cache[full] = windowed_fft(y, self.dt, self.window, bins)
+            self._fft_cache[full] = windowed_fft(y, self.dt, win, bins)
         return self._fft_cache[full]
 
     def periodogram(self, key: str, bins: np.ndarray) -> np.ndarray:

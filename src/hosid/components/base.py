@@ -144,16 +144,19 @@ def _feature(term, s2: float, eps: float, blocks: dict) -> np.ndarray:
     return term.phi(blocks["x"])
 
 
-def feature_ffts(state: RecordState, model: Model, s2: float, bins: np.ndarray) -> np.ndarray:
+def feature_ffts(
+    state: RecordState, model: Model, s2: float, bins: np.ndarray, window=None
+) -> np.ndarray:
     r"""Block transforms of :math:`\ddot x` and of every drift feature,
-    ``(1 + n_drift, B, K)`` on ``bins`` (velocity features restored by :math:`s^2`).
+    ``(1 + n_drift, B, K)`` on ``bins`` (velocity features restored by :math:`s^2`), with
+    the state's window or ``window``.
     """
     eps = max(math.sqrt(s2), 0.05 * state.scales.sigma_v)
-    rows = [state.block_fft("a", lambda b: b["a"], bins)]
+    rows = [state.block_fft("a", lambda b: b["a"], bins, window)]
     for t in model.drift_terms:
         if t.variable == "v":
             key = (t.name, round(s2, 12), state.centred)
         else:
             key = (t.name, state.centred)
-        rows.append(state.block_fft(key, partial(_feature, t, s2, eps), bins))
+        rows.append(state.block_fft(key, partial(_feature, t, s2, eps), bins, window))
     return np.stack(rows)

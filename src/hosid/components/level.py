@@ -50,9 +50,8 @@ import numpy as np
 
 from ..model.excitation import Spectrum
 from ..model.model import Model
-from ..spectra.blocks import windowed_fft
 from ..state import RecordState
-from .base import Moments, _feature, restoration
+from .base import Moments, feature_ffts, restoration
 from .spectral import default_band
 
 __all__ = ["Level", "alias_factor"]
@@ -138,15 +137,12 @@ class Level:
         """
         th0 = np.asarray(pilot, dtype=float)
         L = state.layout
-        bins = self.bins(state)
         why = self.skipped(state, model)
-        nd = model.n_drift
         if why is not None:
             return Moments.empty(self.name, L.B, why)
-        s2, eps = restoration(state, model, th0)
-        blocks = state.blocks
-        rows = [blocks["a"], *(_feature(t, s2, eps, blocks) for t in model.drift_terms)]
-        Y = windowed_fft(np.stack(rows), state.dt, "boxcar", bins)  # (F, B, K)
+        bins, nd = self.bins(state), model.n_drift
+        s2, _ = restoration(state, model, th0)
+        Y = feature_ffts(state, model, s2, bins, window="boxcar")  # (F, B, K), cached
         omega = bins * L.d_omega
         weight = 1.0 / (2 * math.pi * L.T * alias_factor(omega, state.scales.omega_nyquist))
         K = bins.size
