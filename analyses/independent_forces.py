@@ -20,17 +20,40 @@ time, drawn only from the ``numpy.random.Generator`` passed in:
   Gaussian force, but not Gaussian.  The impulse over a sub-step is the sum of
   ``Poisson(rate h)`` areas, drawn exactly as ``sqrt(count) N(0, 2 pi S0 / rate)``
   (normals only for the sub-steps with a count).
+
+A change of the parameters during the record (:class:`ParameterChange`; keys
+``change_at``, ``ramp``, ``<p>_after`` of ``independent_sim.simulate``) is not a force
+but changes the force's level too: from ``change_at`` seconds after the record's first
+sample the parameters move linearly over ``ramp`` seconds (0: a step) to their values
+after, ``p(t) = (1 - phi) p + phi p_after``, ``phi = clip((t - change_at) / ramp, 0,
+1)``.  The splitting kernel then runs piecewise: a piece of samples with the same
+``phi`` (taken at each sample's midpoint: a step falls on the sample boundary nearest
+``change_at``, a ramp is a staircase of one stair a sample) runs with that piece's
+coefficients, and its kicks (white, low-pass, narrow-band or impulses) are scaled by
+``sqrt(S0(t) / S0)``.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numba
 import numpy as np
 import scipy.linalg
 
-__all__ = ["NarrowBand", "PoissonImpulses", "narrowband_matrices"]
+__all__ = [
+    "CHANGE_KEYS",
+    "NarrowBand",
+    "ParameterChange",
+    "PoissonImpulses",
+    "narrowband_matrices",
+]
+
+#: The parameters that may change, in the order of the splitting kernel's coefficients.
+_CHANGING = ("a1", "n1", "a2", "n2", "b2", "mu", "m")
+#: A change's keys in ``independent_sim.simulate``'s params.
+CHANGE_KEYS = ("change_at", "ramp", *(f"{p}_after" for p in (*_CHANGING, "S0")))
 
 
 def _drift(wf: float, zf: float) -> np.ndarray:
@@ -123,4 +146,72 @@ class PoissonImpulses:
         out = np.zeros((1, n))
         hit = np.flatnonzero(counts)
         out[0, hit] = np.sqrt(counts[hit] * self.area_var) * rng.standard_normal(hit.size)
+        return out
+
+
+class ParameterChange:
+    """The pieces of a record with a step or ramp of the parameters (module docstring).
+
+    ``params`` holds the parameters before (``a1 .. m``, ``S0``; absent = 0) and the
+    change's keys (:data:`CHANGE_KEYS`, none: no change); ``coefficients`` the kernel's
+    coefficients before, whose first seven are ``a1, n1, a2, n2, b2, mu, m``; the record
+    is kept after ``n_burn`` samples of burn-in.
+
+    Raises
+    ------
+    ValueError
+        On a change without ``change_at`` or values after it, outside the record, with
+        non-finite values, or to parameters out of range (``a1, n1, n2, mu >= 0``,
+        ``a1 + n1 > 0``, ``a2 > 0``, ``S0 > 0``, ``b2`` only with ``n2 > 0``).
+    """
+
+    def __init__(self, params, coefficients, duration: float, dt: float, n_burn: int):
+        given = {k: float(params[k]) for k in CHANGE_KEYS if k in params}
+        after = {k[:-6]: v for k, v in given.items() if k.endswith("_after")}
+        self.coefficients, self.dt, self.n_burn = tuple(coefficients), float(dt), int(n_burn)
+        self.at, self.ramp = given.get("change_at"), given.get("ramp", 0.0)
+        if self.at is None:
+            if given:
+                raise ValueError(f"{', '.join(given)} without change_at: {dict(params)}")
+            return
+        if not after or not all(math.isfinite(v) for v in given.values()):
+            raise ValueError(f"change_at needs finite values after it (<p>_after): {params}")
+        if not (0 < self.at < duration and self.ramp >= 0 and self.at + self.ramp <= duration):
+            raise ValueError(
+                f"the change must lie in the record: 0 < change_at < change_at + ramp <= "
+                f"duration = {duration:g} s; got change_at {self.at:g} s, ramp {self.ramp:g} s"
+            )
+        before = {k: float(params.get(k, 0.0)) for k in (*_CHANGING, "S0")}
+        self.before, self.after = before, {**before, **after}
+        p = self.after
+        ok = min(p["a1"], p["n1"], p["n2"], p["mu"]) >= 0 and p["a1"] + p["n1"] > 0
+        if not (ok and p["a2"] > 0 and p["S0"] > 0 and (p["b2"] == 0 or p["n2"] > 0)):
+            raise ValueError(f"parameters after the change out of range: {p}")
+
+    def _phi(self, samples: np.ndarray) -> np.ndarray:
+        """``phi`` at the midpoints of the (0-based, burn-in included) samples' steps."""
+        t = (samples - self.n_burn - 0.5) * self.dt - self.at  # sample i ends at i - n_burn
+        if self.ramp > 0:
+            return np.clip(t / self.ramp, 0.0, 1.0)
+        return (t >= 0).astype(float)
+
+    def pieces(self, xi: np.ndarray, start: int, count: int, sub: int):
+        """``(offset, length, coefficients, kicks)`` of the pieces of the ``count``
+        samples from sample ``start`` (burn-in included), ``kicks`` the piece's part of
+        ``xi`` (``sub`` columns a sample) scaled by ``sqrt(S0(t) / S0)``; one piece,
+        ``xi`` itself, without a change.
+        """
+        if self.at is None:
+            return [(0, count, self.coefficients, xi)]
+        phi = self._phi(np.arange(start, start + count))
+        cuts = [0, *(np.flatnonzero(np.diff(phi)) + 1), count]
+        out = []
+        for lo, hi in itertools.pairwise(cuts):
+            f = float(phi[lo])
+            p = {k: (1.0 - f) * v + f * self.after[k] for k, v in self.before.items()}
+            co = (*(p[k] for k in _CHANGING), *self.coefficients[len(_CHANGING) :])
+            kicks = xi[:, lo * sub : hi * sub]
+            if p["S0"] != self.before["S0"]:
+                kicks = kicks * math.sqrt(p["S0"] / self.before["S0"])
+            out.append((lo, hi - lo, co, np.ascontiguousarray(kicks)))
         return out

@@ -69,6 +69,11 @@ not depend on the oscillator):
   (the white force is the limit ``rate -> inf``); the kick is the sum of the
   ``Poisson(rate h)`` areas in the sub-step.  Not with ``wc`` or ``wf``.
 
+A change of the parameters at ``change_at`` seconds from the first sample (a step, or a
+ramp over ``ramp`` seconds) to ``a1_after, n1_after, a2_after, n2_after, S0_after``
+(also ``b2_after, mu_after, m_after``; absent = unchanged) runs the kernel piecewise,
+the kicks scaled by ``sqrt(S0(t) / S0)`` (``independent_forces.ParameterChange``).
+
 With none of them the random stream and the records are those of the paper-only
 simulator above.
 """
@@ -207,7 +212,8 @@ def simulate(
         ``a1, n1, a2, n2, S0`` (``a1, n1, n2 >= 0``, ``a1 + n1 > 0``, ``a2 > 0``,
         ``S0 > 0``) and optionally the effects ``b2, mu, m, wc, noise_sd`` and forces
         ``wf, zf, rate`` (module docstring; ``mu, wc, noise_sd, rate >= 0``, ``b2`` only
-        with ``n2 > 0``, ``wf`` and ``zf`` both > 0 or both 0, one non-white force).
+        with ``n2 > 0``, ``wf`` and ``zf`` both > 0 or both 0, one non-white force), and
+        a change ``change_at, ramp, <p>_after`` (module docstring).
     duration, dt : float
         Record length and sampling interval (s).
     rng : numpy.random.Generator
@@ -236,7 +242,7 @@ def simulate(
     if not isinstance(rng, np.random.Generator):
         raise TypeError("rng must be a numpy.random.Generator")
     missing = set(_KEYS) - set(params)
-    unknown = set(params) - set(_KEYS) - set(EFFECT_KEYS)
+    unknown = set(params) - set(_KEYS) - set(EFFECT_KEYS) - set(independent_forces.CHANGE_KEYS)
     if missing or unknown:
         raise ValueError(
             f"params must hold {', '.join(_KEYS)} (optional: {', '.join(EFFECT_KEYS)}); "
@@ -277,6 +283,7 @@ def simulate(
     elif rate > 0:
         force = independent_forces.PoissonImpulses(rate, S0, h)
     coefficients = (a1, n1, a2, n2, b2, mu, m, sigma, wc, force is not None)
+    change = independent_forces.ParameterChange(params, coefficients, duration, dt, n_burn)
     done = 0
     while done < n_burn + n_out:
         k = min(CHUNK, n_burn + n_out - done)
@@ -284,7 +291,8 @@ def simulate(
             xi = force.impulses(rng, k * sub)
         else:  # one normal a sub-step for a white force (the paper-only stream), two for wc
             xi = rng.standard_normal((2, k * sub) if wc > 0 else (1, k * sub))
-        _baoab(xi, k, sub, h, *coefficients, state, *scratch)
+        for lo, n, co, kicks in change.pieces(xi, done, k, sub):  # one without a change
+            _baoab(kicks, n, sub, h, *co, state, *scratch[:, lo : lo + n])
         if done + k > n_burn:
             lo = max(n_burn - done, 0)
             a, b = done + lo - n_burn, done + k - n_burn

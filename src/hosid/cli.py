@@ -1,7 +1,7 @@
 """Command line: argument parsing and error mapping only.
 
-``hosid simulate | estimate | fit | diagnose | report | demo | batch``.  Every failure ends with
-one line on stderr and no traceback:
+``hosid simulate | estimate | fit | diagnose | report | demo | batch | monitor``.  Every
+failure ends with one line on stderr and no traceback:
 
 - bad input of any kind: ``hosid: error: <message>``, exit code 2;
 - a record that hosid's model class cannot describe (:mod:`hosid.screen`):
@@ -28,6 +28,7 @@ from hosid.errors import (
     HosidInputError,
     RecordRejected,
 )
+from hosid.monitor.cli import add_monitor_parser
 
 __all__ = ["build_parser", "main"]
 
@@ -184,6 +185,33 @@ def build_parser() -> argparse.ArgumentParser:
         help="Poisson impulses a second with Gaussian areas in place of the white force "
         "(the same level S0, not Gaussian); default none",
     )
+    sim.add_argument(
+        "--change-at",
+        type=_positive,
+        metavar="T",
+        help="seconds from the first sample at which the parameters change to the --*-after "
+        "values; default no change",
+    )
+    sim.add_argument(
+        "--ramp",
+        type=_nonnegative,
+        metavar="R",
+        help="seconds over which they move linearly to those values; default 0 (a step)",
+    )
+    for name, kind in (
+        ("a1", _nonnegative),
+        ("n1", _nonnegative),
+        ("a2", _number),
+        ("n2", _nonnegative),
+        ("S0", _positive),
+    ):
+        sim.add_argument(
+            f"--{name}-after",
+            dest=f"{name}_after",
+            type=kind,
+            metavar="V",
+            help=f"{name} after the change (with --change-at); default unchanged",
+        )
     sim.add_argument("--duration", type=_positive, default=2000.0, help="seconds, default 2000")
     sim.add_argument("--dt", type=_positive, default=0.02, help="seconds, default 0.02")
     sim.add_argument("--seed", type=_integer(0), default=0, help="default 0")
@@ -303,13 +331,14 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
     demo.set_defaults(func=commands.cmd_demo)
     add_batch_parser(sub)
+    add_monitor_parser(sub)
     return parser
 
 
 def _resume_hint(args: argparse.Namespace) -> str:
     if args.command in ("fit", "demo"):
         return f"the chain so far is kept; resume with: {args.command_line}"
-    if args.command == "batch":
+    if args.command in ("batch", "monitor"):
         return f"the finished tasks are kept; finish the others with: {args.command_line}"
     return f"nothing was written; rerun: {args.command_line}"
 
@@ -325,7 +354,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
         if args.command is None:
             parser.error(
-                "a command is required: simulate, estimate, fit, diagnose, report, demo or batch"
+                "a command is required: simulate, estimate, fit, diagnose, report, demo, "
+                "batch or monitor"
             )
         args.command_line = shlex.join(["hosid", *argv])
         return args.func(args)

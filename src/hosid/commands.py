@@ -87,6 +87,7 @@ def _print_fit(summary: dict) -> None:
 # --- commands -------------------------------------------------------------------------
 def cmd_simulate(args) -> int:
     """``hosid simulate``: write a simulated record and its true parameters."""
+    from hosid.model.change import Change
     from hosid.model.simulate import simulate
     from hosid.output.files import write_atomic
     from hosid.record import write_record
@@ -105,12 +106,14 @@ def cmd_simulate(args) -> int:
             if getattr(args, k) is not None
         }
     )
+    _, change = Change.split(vars(args), options=True)  # --change-at, --ramp, --*-after
     record = simulate(
         params,
         duration=args.duration,
         dt=args.dt,
         rng=np.random.default_rng(args.seed),
         name=out.stem,
+        change=change,
     )
     tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp{out.suffix}")
     try:
@@ -119,8 +122,10 @@ def cmd_simulate(args) -> int:
     finally:
         tmp.unlink(missing_ok=True)
     sidecar = out.with_suffix(".truths.json")
-    write_atomic(sidecar, json.dumps(params, indent=2) + "\n")
-    print(f"wrote {out}: {record.n} samples, dt={record.dt:g} s (true parameters: {sidecar})")
+    truths = {**params, **(change.flat() if change else {})}
+    write_atomic(sidecar, json.dumps(truths, indent=2) + "\n")
+    said = f" (true parameters: {sidecar})" + (f"; {change.describe(params)}" if change else "")
+    print(f"wrote {out}: {record.n} samples, dt={record.dt:g} s{said}")
     return 0
 
 

@@ -21,6 +21,9 @@ column        meaning
               ``SeedSequence([seed, *entropy, i])`` (a study's own streams, so that
               the batch reproduces records it made before)
 a1 ... S0     the true parameters (:data:`hosid.model.simulate.SIM_KEYS`); empty = absent
+change_at     a step (or with ``ramp``, a ramp) of the parameters ``a1_after``,
+              ``n1_after``, ``a2_after``, ``n2_after``, ``S0_after`` ... at that time
+              (s; :data:`hosid.model.change.FLAT_KEYS`)
 ============  =====================================================================
 
 Keys fix the records: adding rows, or seeds to a row, leaves every other record as it
@@ -46,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import HosidInputError
+from ..model.change import FLAT_KEYS, Change
 from ..model.simulate import SIM_KEYS
 from ..model.simulate import _check as check_simulation
 from ..record import Record
@@ -120,14 +124,15 @@ def _row(i: int, raw: Mapping[str, Any], where: str, folder: Path) -> DesignRow:
     if not isinstance(raw, Mapping):
         raise HosidInputError(f"{where}: row {i} is not an object of columns")
     cells = {str(k).strip(): v for k, v in raw.items() if v is not None and str(v).strip() != ""}
-    unknown = set(cells) - set(COLUMNS) - set(SIM_KEYS)
+    keys = (*SIM_KEYS, *FLAT_KEYS)
+    unknown = set(cells) - set(COLUMNS) - set(keys)
     if unknown:
         raise HosidInputError(
             f"{where}: unknown column(s) {', '.join(sorted(unknown))}; "
-            f"valid: {', '.join(COLUMNS + SIM_KEYS)}"
+            f"valid: {', '.join((*COLUMNS, *keys))}"
         )
     at = f"{where} row {i}"
-    params = {k: _number(cells[k], f"{at}, {k}") for k in SIM_KEYS if k in cells}
+    params = {k: _number(cells[k], f"{at}, {k}") for k in keys if k in cells}
     row = DesignRow(
         name=str(cells.get("name", f"row{i}")).strip(),
         key=_integer(cells.get("key", i), f"{at}, key", 0),
@@ -140,7 +145,10 @@ def _row(i: int, raw: Mapping[str, Any], where: str, folder: Path) -> DesignRow:
         entropy=_entropy(cells["entropy"], f"{at}, entropy") if "entropy" in cells else (),
     )
     try:
-        check_simulation(row.params, row.duration, row.dt, 1)
+        base, change = Change.split(row.params)
+        check_simulation(base, row.duration, row.dt, 1)
+        if change is not None:
+            change.validate(base, row.duration, row.dt, 1)
         load_simulator(_resolve(row.simulator, folder))
     except HosidInputError as exc:
         raise HosidInputError(f"{at}: {exc}") from None
@@ -231,9 +239,7 @@ def load_simulator(ref: str) -> Callable[..., Any]:
         If the file or module cannot be imported or has no such function.
     """
     if ref == "hosid":
-        from ..model.simulate import simulate as hosid_simulate
-
-        return functools.partial(hosid_simulate, return_velocity=True)
+        return _hosid_simulate
     where, _, func = ref.rpartition(":")
     try:
         if where.endswith(".py"):
@@ -248,6 +254,14 @@ def load_simulator(ref: str) -> Callable[..., Any]:
     if not callable(fn):
         raise HosidInputError(f"simulator {where} has no function {func!r}")
     return fn
+
+
+def _hosid_simulate(params, **kw):
+    """The package's simulator, given a design's flat change keys (:data:`FLAT_KEYS`)."""
+    from ..model.simulate import simulate as hosid_simulate
+
+    base, change = Change.split(params)
+    return hosid_simulate(base, change=change, return_velocity=True, **kw)
 
 
 def _import_file(path: Path):

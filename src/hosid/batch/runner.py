@@ -25,7 +25,7 @@ import os
 import sys
 import time
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence, Sized
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -193,7 +193,7 @@ def _failed(task: Task, message: str, task_id: str = "") -> dict[str, Any]:
 
 
 def run_batch(
-    tasks: Sequence[Task],
+    tasks: Iterable[Task | None],
     out: str | Path,
     *,
     workers: int | None = None,
@@ -203,13 +203,17 @@ def run_batch(
     write_records: bool = False,
     retry_errors: bool = False,
     label: str = "hosid batch",
+    on_row: Callable[[dict[str, Any]], None] | None = None,
 ) -> BatchResult:
     """Run ``tasks`` under the folder ``out`` (module docstring).
 
     Parameters
     ----------
-    tasks : sequence of Task
-        :func:`hosid.batch.record_tasks` or :func:`hosid.batch.design_tasks`.
+    tasks : iterable of Task or None
+        :func:`hosid.batch.record_tasks` or :func:`hosid.batch.design_tasks`; any
+        iterable (a generator over a long record is read as it goes, at most two tasks a
+        worker thread held at once).  ``None`` is a tick of a source that waits for
+        data: the tasks finished meanwhile are collected (``hosid monitor --follow``).
     out : path
         The batch's folder (created if needed, never removed).
     workers : int, optional
@@ -224,6 +228,8 @@ def run_batch(
         Run again the tasks whose stored row has status ``error``.
     label : str
         The progress bar's label and the lock's holder.
+    on_row : callable, optional
+        Called with each task's row as it finishes (or is found done before).
 
     Returns
     -------
@@ -244,7 +250,7 @@ def run_batch(
     with locked_dir(out, command=label), _Session(workers, scheduler) as session:
         rows.update(read_rows(out))
         bar = tqdm(
-            total=len(tasks),
+            total=len(tasks) if isinstance(tasks, Sized) else None,
             desc=label,
             unit="task",
             disable=not progress or not sys.stderr.isatty(),
@@ -260,12 +266,18 @@ def run_batch(
                 rows[outcome.row["task"]] = outcome.row
             result.ran += 1
             bar.update()
+            if on_row is not None:
+                on_row(rows[outcome.row["task"]])
             if time.monotonic() - last[0] > TABLE_EVERY:
                 write_table(out, _rows(order, rows))
                 last[0] = time.monotonic()
 
         try:
             for task in tasks:
+                if task is None:
+                    for outcome in session.ready():
+                        finish(outcome)
+                    continue
                 try:
                     task = task.prepare()
                 except HosidInputError as exc:
@@ -280,6 +292,8 @@ def run_batch(
                 if _done(rows.get(task.id), out, **done_if):
                     result.skipped += 1
                     bar.update()
+                    if on_row is not None:
+                        on_row(rows[task.id])
                     continue
                 for outcome in session.submit(task, save_posterior, write_records):
                     finish(outcome)
@@ -343,6 +357,12 @@ class _Session:
         )
         while self._ac.count() >= self._window:
             yield self._outcome(next(self._ac))
+
+    def ready(self) -> Iterator[Outcome]:
+        """The outcomes of the tasks that have finished, without waiting."""
+        if self._ac is not None and self._ac.has_ready():
+            for future in self._ac.next_batch(block=False):
+                yield self._outcome(future)
 
     def drain(self) -> Iterator[Outcome]:
         """The outcomes of every task still in flight, as they finish."""

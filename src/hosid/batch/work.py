@@ -76,12 +76,27 @@ def _draw_stats(tree) -> tuple[dict[str, dict[str, float]], dict[str, Any]]:
     for p, s in summary["parameters"].items():
         draws = post[p].values
         params[p] = {**s, "min": float(draws.min()), "max": float(draws.max())}
+    names = list(summary["parameters"])
+    draws = np.stack([np.asarray(post[p].values, dtype=float).ravel() for p in names])
     scalars = {
         "converged": int(summary["converged"]),
         "steps": (attr(tree, "sampler") or {}).get("steps"),
         "fit_seconds": summary["fit_seconds"],
+        "posterior_corr": _corr_cell(names, np.cov(draws)),
     }
     return params, scalars
+
+
+def _corr_cell(names: Sequence[str], cov: np.ndarray) -> str:
+    """The posterior correlation matrix as one JSON cell: ``{"params": [...], "corr":
+    [[...]]}`` (the change test of ``hosid monitor`` weighs a window's parameters by it).
+    """
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    np.fill_diagonal(corr, 1.0)
+    return json.dumps({"params": list(names), "corr": np.round(corr, 6).tolist()})
 
 
 def _with_shape(options: Mapping) -> dict:
@@ -114,10 +129,14 @@ def _estimate(record: Record, options: Mapping, rng, truths, keep: bool):
     comps = components_for(o["cost"], band=band, form=o["form"], domain=o["domain"])
     est = estimate(record, o["model"], comps, block_seconds=o["block_seconds"])
     values, sd = dict(est.values), dict(est.sd)
+    names, cov = list(est.model.param_names), np.asarray(est.cov, dtype=float)
     if est.model.has("a1"):  # eq (65) is linear in theta: its gradient is its value at e_i
         g = est.model.equivalent_damping(np.eye(len(est.theta)), est.sigma_v)
         values["a1eq"] = float(g @ est.theta)
         sd["a1eq"] = math.sqrt(float(g @ est.cov @ g))
+        gc = cov @ g
+        cov = np.block([[cov, gc[:, None]], [gc[None, :], np.array([[g @ gc]])]])
+        names.append("a1eq")
     params = {
         p: {
             "mean": values[p],
@@ -131,6 +150,7 @@ def _estimate(record: Record, options: Mapping, rng, truths, keep: bool):
         "hansen_df": est.test.get("df"),
         "hansen_p": est.test.get("p_value"),
         "fit_seconds": time.perf_counter() - t0,
+        "posterior_corr": _corr_cell(names, cov),
     }
     return params, row, None, getattr(est, "checks", None) or [], list(est.model.names)
 

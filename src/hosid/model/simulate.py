@@ -53,6 +53,7 @@ import numpy as np
 from ..errors import HosidInputError
 from ..record import Record
 from ..screen import THRESHOLDS
+from .change import Change, blend, switch
 
 __all__ = [
     "PAPER_PARAMS",
@@ -85,34 +86,38 @@ def _accel(x, v, g, c):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _heun(dW, dZ, n_out, sub, h, c, wc, burn, xs, vs):  # pragma: no cover - compiled
+def _heun(dW, dZ, n_out, sub, h, c, wc, burn, xs, vs, sw):  # pragma: no cover - compiled
     """Stochastic Heun on (x, v) or, with ``wc > 0``, on (x, v, g); ``dZ`` is the part
-    of the white force's double integral that ``dW`` does not hold (module docstring).
+    of the white force's double integral that ``dW`` does not hold (module docstring);
+    ``sw`` a change of the parameters (:func:`hosid.model.change.switch`).
     """
+    cc, s, k0, k1 = c.copy(), 1.0, round(sw[2] * sub), round(sw[3] * sub)
     x = 0.0
     v = 0.0
     g = 0.0
     k = 0
     for i in range(burn + n_out):
         for _ in range(sub):
-            w = dW[k]
+            if k0 <= k <= k1:
+                s = blend(k, k0, k1, c, sw, cc)
+            w = dW[k] * s
             k += 1
             if wc > 0.0:
-                a0 = _accel(x, v, g, c)
+                a0 = _accel(x, v, g, cc)
                 g0 = -wc * g
                 xp = x + h * v
                 vp = v + h * a0
                 gp = g + h * g0 + wc * w
-                a1 = _accel(xp, vp, gp, c)
+                a1 = _accel(xp, vp, gp, cc)
                 x += 0.5 * h * (v + vp)
                 v += 0.5 * h * (a0 + a1)
                 g += 0.5 * h * (g0 - wc * gp) + wc * w
             else:
-                a0 = _accel(x, v, 0.0, c)
+                a0 = _accel(x, v, 0.0, cc)
                 xp = x + h * v
                 vp = v + h * a0 + w
-                a1 = _accel(xp, vp, 0.0, c)
-                x += 0.5 * h * (v + vp) + dZ[k - 1]
+                a1 = _accel(xp, vp, 0.0, cc)
+                x += 0.5 * h * (v + vp) + dZ[k - 1] * s
                 v += 0.5 * h * (a0 + a1) + w
         if i >= burn:
             xs[i - burn] = x
@@ -120,17 +125,20 @@ def _heun(dW, dZ, n_out, sub, h, c, wc, burn, xs, vs):  # pragma: no cover - com
 
 
 @numba.njit(cache=True)
-def _heun_forced(f, n_out, sub, h, c, burn, xs, vs):  # pragma: no cover - compiled
+def _heun_forced(f, n_out, sub, h, c, burn, xs, vs, sw):  # pragma: no cover - compiled
     """Heun on (x, v) driven by the smooth force ``f`` given on the sub-step grid."""
+    cc, s, k0, k1 = c.copy(), 1.0, round(sw[2] * sub), round(sw[3] * sub)
     x = 0.0
     v = 0.0
     k = 0
     for i in range(burn + n_out):
         for _ in range(sub):
-            a0 = _accel(x, v, f[k], c)
+            if k0 <= k <= k1:
+                s = blend(k, k0, k1, c, sw, cc)
+            a0 = _accel(x, v, f[k] * s, cc)
             xp = x + h * v
             vp = v + h * a0
-            a1 = _accel(xp, vp, f[k + 1], c)
+            a1 = _accel(xp, vp, f[k + 1] * s, cc)
             x += 0.5 * h * (v + vp)
             v += 0.5 * h * (a0 + a1)
             k += 1
@@ -287,6 +295,7 @@ def simulate(
     burn_in: float | None = None,
     name: str = "",
     return_velocity: bool = False,
+    change: Change | None = None,
 ) -> Record | tuple[Record, np.ndarray]:
     r"""Simulate one stationary displacement record.
 
@@ -312,12 +321,15 @@ def simulate(
         decay times :math:`30/a_{1eq}` (at most 20 000 s).
     return_velocity : bool
         Also return the simulated velocity at the sampling instants.
+    change : hosid.model.change.Change, optional
+        A step or ramp of the parameters during the record (:mod:`hosid.model.change`).
 
     Raises
     ------
     HosidInputError
         On unknown or non-finite parameters, impossible settings, or a response that
-        escapes (the oscillator has no stationary state, or ``dt`` is too coarse).
+        escapes (the oscillator has no stationary state, or ``dt`` is too coarse), also
+        after a ``change``, or a ``change`` outside the record.
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError("rng must be a numpy.random.Generator")
@@ -334,6 +346,7 @@ def simulate(
     h = dt / sub
     xs = np.empty(n_out)
     vs = np.empty(n_out)
+    sw = switch(change, params, duration=duration, dt=dt, substeps=substeps, burn=burn)
     wb = float(params.get("wb", 0.0) or 0.0)
     wf = float(params.get("wf", 0.0) or 0.0)
     if wf > 0:
@@ -341,16 +354,16 @@ def simulate(
         h = dt / sub
         shape = narrowband_shape(wf, float(params["zf"]))
         f = shaped_force((burn + n_out) * sub + 1, h, S0, shape, rng)
-        _heun_forced(f, n_out, sub, h, c, burn, xs, vs)
+        _heun_forced(f, n_out, sub, h, c, burn, xs, vs, sw)
     elif float(params.get("rate", 0.0) or 0.0) > 0:
         sub = int(substeps) if substeps else 40
         h = dt / sub
         dW, dZ = poisson_impulses((burn + n_out) * sub, h, S0, float(params["rate"]), rng)
-        _heun(dW, dZ, n_out, sub, h, c, 0.0, burn, xs, vs)
+        _heun(dW, dZ, n_out, sub, h, c, 0.0, burn, xs, vs, sw)
     elif wb > 0:
         rolloff = float(params.get("rolloff", 0.0) or 0.0)
         f = band_limited_force((burn + n_out) * sub + 1, h, S0, wb, wc, rng, rolloff)
-        _heun_forced(f, n_out, sub, h, c, burn, xs, vs)
+        _heun_forced(f, n_out, sub, h, c, burn, xs, vs, sw)
     else:
         n_sub = (burn + n_out) * sub
         dW = rng.standard_normal(n_sub) * math.sqrt(2.0 * math.pi * S0 * h)
@@ -361,7 +374,7 @@ def simulate(
             if wc <= 0.0
             else np.zeros(0)
         )
-        _heun(dW, dZ, n_out, sub, h, c, wc, burn, xs, vs)
+        _heun(dW, dZ, n_out, sub, h, c, wc, burn, xs, vs, sw)
     if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(vs))):
         raise HosidInputError(
             "the simulated response escaped (no stationary state for these parameters, "

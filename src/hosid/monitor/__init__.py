@@ -1,0 +1,1 @@
+"""Condition monitoring over long records (hosid monitor)."""
