@@ -9,7 +9,8 @@ many stationary ones; the change time is drawn uniformly in [20 000, 36 000] s (
 second half, at least two windows before the end) from the record's own stream
 (``SeedSequence(SEED, spawn_key=(case key, record))``).  ``--sizes K ...`` adds a power
 curve: a2 steps of K bound-sd of one window (``crb.md``'s a2 bound scaled to the
-window) on the paper oscillator, 5 records each.
+window) on the ship-roll-like oscillator (``--size-system paper`` for the other), 5
+records each.
 
 Each record is simulated, written as ``.npz``, monitored (``hosid.monitor.monitor``,
 defaults: a calibrated emcee fit per window, alpha = 0.05, 95 % intervals) on one local
@@ -55,6 +56,8 @@ SHIP = {"a1": 0.03, "n1": 0.15, "a2": 0.35, "n2": 0.2, "S0": 2.6e-4}
 SYSTEMS = {"paper": (PAPER, 0.02), "ship": (SHIP, 0.1)}
 #: a2's information limit per 2000 s (paper) and 4000 s (ship) record (crb.md)
 A2_BOUND = {"paper": (0.90, 2000.0), "ship": (0.00569, 4000.0)}
+#: the monitor's default window on these records (s)
+WINDOW = {"paper": 1986.56, "ship": 4096.0}
 #: name: (system, key, changed parameter or None, factor after, records per --records)
 CASES = {
     "paper_a2": ("paper", 1, "a2", 0.95, 1),
@@ -69,7 +72,9 @@ FIELDS = ["case", "record", "parameter", "truth_time", "truth_size", "windows", 
           "seconds"]  # fmt: skip
 
 
-def design(cases: Sequence[str], records: int, sizes: Sequence[float]) -> list[dict]:
+def design(
+    cases: Sequence[str], records: int, sizes: Sequence[float], system: str = "ship"
+) -> list[dict]:
     """One dict per record: case, index, system, parameters and change."""
     out = []
     for name in cases:
@@ -77,11 +82,10 @@ def design(cases: Sequence[str], records: int, sizes: Sequence[float]) -> list[d
         out += [dict(case=name, i=i, system=system, key=key, p=p, factor=factor)
                 for i in range(records * mult)]  # fmt: skip
     for k in sizes:
-        bound, T = A2_BOUND["paper"]
-        window = 1986.56  # the monitor's default window on these records (97 blocks)
-        step = k * bound * math.sqrt(T / window)
-        factor = 1.0 - step / PAPER["a2"]
-        out += [dict(case=f"paper_a2_{k:g}sd", i=i, system="paper", key=100 + round(10 * k),
+        bound, T = A2_BOUND[system]
+        step = k * bound * math.sqrt(T / WINDOW[system])
+        factor = 1.0 - step / SYSTEMS[system][0]["a2"]
+        out += [dict(case=f"{system}_a2_{k:g}sd", i=i, system=system, key=100 + round(10 * k),
                      p="a2", factor=factor) for i in range(5)]  # fmt: skip
     return out
 
@@ -201,13 +205,14 @@ def main(argv: Sequence[str] | None = None) -> Path:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     ap.add_argument("--records", type=int, default=10)
-    ap.add_argument("--sizes", type=float, nargs="*", default=[])
+    ap.add_argument("--sizes", type=float, nargs="*", default=[], help="a2 steps in bound-sd")
+    ap.add_argument("--size-system", choices=list(SYSTEMS), default="ship")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--summary", action="store_true")
     args = ap.parse_args(argv)
     path = WORK / "results.csv"
     if not args.summary:
-        run(design(args.cases, args.records, args.sizes), args.workers)
+        run(design(args.cases, args.records, args.sizes, args.size_system), args.workers)
     md = summarize(path, RESULTS)
     (RESULTS / "results.csv").write_text(path.read_text())
     print(f"wrote {md}")

@@ -5,7 +5,7 @@ format an operator's logger gives; about 110 MB), then times, each as its own pr
 with the peak resident memory of its whole process tree (the command, the dask
 scheduler and its workers, sampled every 0.2 s with psutil):
 
-* the baseline: ``hosid batch fit`` of one window cut from the same record (a 2016 s
+* the baseline: ``hosid batch fit`` of one window cut from the same record (a 2048 s
   record: the monitor's default window on this record), with ``--workers 1``;
 * ``hosid monitor DAY.csv --out DIR --workers 2`` with its defaults.
 
@@ -91,15 +91,16 @@ def main(argv: Sequence[str] | None = None) -> dict:
                              rng=np.random.default_rng(7))  # fmt: skip
         write_record(rec, day)
         one = folder / "one.npz"
-        write_record(Record(rec.x[: round(2016 / 0.02)], 0.02), one)
+        write_record(Record(rec.x[: round(2048 / 0.02)], 0.02), one)
         n = rec.n
         del rec
         sim = time.perf_counter() - t0
-        base_t, base_m, _ = timed([*HOSID, "batch", "fit", str(one), "--out",
-                                   str(folder / "one"), "--workers", "1", "--no-progress"])  # fmt: skip
-        mon_t, mon_m, out = timed([*HOSID, "monitor", str(day), "--out", str(folder / "mon"),
-                                   "--workers", str(args.workers), "--no-progress"])  # fmt: skip
-    windows = int(out.split(" windows")[0].split()[-1]) if " windows" in out else 0
+        base = [*HOSID, "batch", "fit", str(one), "--out", str(folder / "one")]
+        base_t, base_m, _ = timed([*base, "--workers", "1", "--no-progress"])
+        mon = [*HOSID, "monitor", str(day), "--out", str(folder / "mon")]
+        mon_t, mon_m, out = timed([*mon, "--workers", str(args.workers), "--no-progress"])
+    done = [ln for ln in out.splitlines() if ln[:1].isdigit() and " windows (" in ln]
+    windows = int(done[-1].split()[0]) if done else 0
     res = {
         "samples": n,
         "simulate_and_write_s": sim,
@@ -114,7 +115,7 @@ def main(argv: Sequence[str] | None = None) -> dict:
     }
     for k, v in res.items():
         print(f"{k:24s} {v}")
-    print(out.strip().splitlines()[-2] if out.strip() else "")
+    print(done[-1] if done else out)
     return res
 
 

@@ -5,6 +5,7 @@ errors; the tracks and the change test end to end on short simulated records.
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import os
 import signal
@@ -55,7 +56,7 @@ def test_every_format_gives_the_same_windows(record, tmp_path, monkeypatch):
     parts.mkdir()
     lines = record.read_text().splitlines(True)
     cuts = [1, 40001, 90001, len(lines)]
-    for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
+    for k, (a, b) in enumerate(itertools.pairwise(cuts)):
         (parts / f"part{k + 8}.csv").write_text(lines[0] + "".join(lines[a:b]))  # 8, 9, 10
     src = Source(record)
     layout = choose_layout(src, window=WINDOW, block_seconds=20.48)
@@ -82,8 +83,13 @@ def test_no_window_spans_a_gap(tmp_path):
 
     layout = Layout(samples=300, step=300, dt=dt, block_seconds=1.0)
     ws = _windows(src, layout)
-    assert [round(w.start, 6) for w in ws] == [0, 30, 60, 500, 530, 560]
+    # each run's last 10 s (a third of a window) get a window ending with the run
+    assert [round(w.start, 6) for w in ws] == [0, 30, 60, 70, 500, 530, 560, 570]
     assert all(w.end <= 100.0 + 1e-9 or w.start >= 500.0 for w in ws)
+    np.testing.assert_array_equal(ws[3].x, x[700:1000])
+    assert count(n, layout) == 4
+    bare = [w for w in windows(src.pieces(), layout, tail=False) if w is not None]
+    assert [round(w.start, 6) for w in bare] == [0, 30, 60, 500, 530, 560]
 
 
 def test_follow_reads_appended_lines(tmp_path):
@@ -106,7 +112,9 @@ def test_follow_reads_appended_lines(tmp_path):
     from hosid.monitor.windows import Layout
 
     layout = Layout(samples=300, step=150, dt=0.1, block_seconds=1.0)
-    got = list(windows(Source(path).pieces(follow=True, poll=0.001, stop=stop), layout))
+    got = list(
+        windows(Source(path).pieces(follow=True, poll=0.001, stop=stop), layout, tail=False)
+    )
     ws = [w for w in got if w is not None]
     assert None in got  # the idle looks are passed on
     assert [round(w.start, 6) for w in ws] == [0, 15, 30, 45, 60]
@@ -214,12 +222,12 @@ def test_a_step_is_named_with_its_time_and_size(tmp_path, after, kind):
     write_record(rec, path)
     res = monitor(path, tmp_path / "m", window=WINDOW, block_seconds=20.48, analysis="estimate",
                   workers=1, progress=False, echo=lambda s: None)  # fmt: skip
-    (p, v), = after.items()
+    ((p, v),) = after.items()
     assert [c.parameter for c in res.changes] == [p]
     c = res.changes[0]
     assert c.time_lo <= 2100.0 <= c.time_hi
     assert c.size_lo <= v - params[p] <= c.size_hi
     assert res.tracks.kinds[p] == kind
     with (tmp_path / "m" / "changes.csv").open() as fh:
-        row, = list(csv.DictReader(fh))
+        (row,) = list(csv.DictReader(fh))
     assert row["parameter"] == p and row["kind"] == kind

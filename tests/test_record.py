@@ -348,8 +348,11 @@ def test_npz_segments_as_rows_or_labels(tmp_path):
 
 def test_directory_and_non_archive(tmp_path):
     (tmp_path / "d.csv").mkdir()
-    with pytest.raises(HosidInputError, match="is a directory"):
+    with pytest.raises(HosidInputError, match="is a folder"):
         read_record(tmp_path / "d.csv")
+    (tmp_path / "adir").mkdir()  # no suffix: named a folder, not an unknown type
+    with pytest.raises(HosidInputError, match="adir: is a folder"):
+        read_record(tmp_path / "adir")
     (tmp_path / "p.npz").write_bytes(b"\x80\x04not a zip at all")
     with pytest.raises(HosidInputError, match=r"not an \.npz archive") as err:
         read_record(tmp_path / "p.npz")

@@ -12,7 +12,7 @@ held at once.  From the rows the monitor writes, together (staged, then moved in
   ``end``, ``parameter``, ``mean``, ``sd``, ``q05``, ``q50``, ``q95``, the window's
   ``status`` and record-check ``verdict`` (a window that fails its checks keeps its
   rows, without numbers: it is marked, never dropped);
-* ``changes.csv``: the named changes (:mod:`hosid.monitor.changes`) with ``parameter``,
+* ``changes.csv``: the named changes (:mod:`hosid.monitor.joint`) with ``parameter``,
   ``time``, ``time_lo``, ``time_hi``, ``size``, ``size_lo``, ``size_hi`` (after minus
   before), the parameter's ``kind`` (``drift``: the structure; ``excitation``: the
   force, e.g. a calmer sea) and the test's ``statistic``, ``p_value`` and ``threshold``;
@@ -85,7 +85,7 @@ def _tasks(source, layout, analysis, options, seed, meta, *, follow, poll, stop)
     from ..batch import Task
     from ..record import Record
 
-    for w in windows(source.pieces(follow=follow, poll=poll, stop=stop), layout):
+    for w in windows(source.pieces(follow=follow, poll=poll, stop=stop), layout, tail=not follow):
         if w is None:  # the growing file had nothing new: collect what finished
             yield None
             continue

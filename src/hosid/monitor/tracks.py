@@ -1,5 +1,5 @@
 """The tracks of a monitor: every parameter's posterior window by window, their tables,
-and the change test run on them (:mod:`hosid.monitor.changes`).
+and the change test run on them (:mod:`hosid.monitor.joint`).
 
 A window whose fit did not give a posterior (its record checks rejected it, or it
 failed) keeps its place in the tracks with its ``status``, ``verdict`` and ``message``

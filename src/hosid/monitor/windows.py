@@ -19,7 +19,7 @@ paper oscillator's 2000 s windows get its 20.48 s blocks, the ship-roll-like
 oscillator's 4096 s windows the 102.4 s blocks of the efficiency study's 4000 s
 records).  Windows that do not overlap (:math:`S = W`) give independent estimates; a
 shorter step gives a smoother track of correlated ones, which
-the change test accounts for (:mod:`hosid.monitor.changes`).
+the change test accounts for (:mod:`hosid.monitor.joint`).
 """
 
 from __future__ import annotations
@@ -161,40 +161,67 @@ def choose_layout(
     return Layout(samples=samples, step=stride, dt=dt, block_seconds=M * dt)
 
 
-def windows(pieces: Iterable[Piece | None], layout: Layout) -> Iterator[Window | None]:
+def windows(
+    pieces: Iterable[Piece | None], layout: Layout, *, tail: bool = True
+) -> Iterator[Window | None]:
     """The windows of the pieces (module docstring), in order; a window never spans the
-    start of a run, and a run's samples after its last whole window wait for more data
-    (or are left out when the run ends).  A ``None`` piece (a growing source's idle
-    look) is passed on as ``None``.
+    start of a run.  A run's samples after its last whole window wait for more data;
+    when the run ends (a new run starts, or the source ends) and they hold at least a
+    quarter of a window, a last window ending with the run covers them (``tail``; it
+    overlaps the one before, which the change test allows for), so a change late in a
+    record is seen.  A ``None`` piece (a growing source's idle look) is passed on.
     """
     W, S, dt = layout.samples, layout.step, layout.dt
     index = 0
     buf = np.zeros(0)
     t_buf = 0.0  # time of buf[0]
+    prev = None  # the last window of the run
+
+    def last_window():
+        nonlocal index
+        if not tail or prev is None:
+            return None
+        fresh = buf[W - S :]  # the samples after the last window's end
+        if fresh.size < W / 4:
+            return None
+        x = np.concatenate([prev.x, fresh])[-W:]
+        end = prev.end + fresh.size * dt
+        index += 1
+        return Window(index - 1, end - W * dt, end, x)
+
     for piece in pieces:
         if piece is None:  # a growing source had nothing new
             yield None
             continue
         if piece.new_run:
-            buf, t_buf = np.zeros(0), piece.t0
+            w = last_window()
+            if w is not None:
+                yield w
+            buf, t_buf, prev = np.zeros(0), piece.t0, None
         elif buf.size == 0:
             t_buf = piece.t0
         buf = np.concatenate([buf, piece.x])
         first = 0
         while buf.size - first >= W:
             start = t_buf + first * dt
-            x = buf[first : first + W].copy()
-            yield Window(index, start, start + W * dt, x)
+            prev = Window(index, start, start + W * dt, buf[first : first + W].copy())
+            yield prev
             index += 1
             first += S
         buf, t_buf = buf[first:], t_buf + first * dt  # first <= buf.size as S <= W
+    w = last_window()
+    if w is not None:
+        yield w
 
 
-def count(total_samples: int, layout: Layout) -> int:
-    """Windows in one run of ``total_samples`` samples."""
-    if total_samples < layout.samples:
+def count(total_samples: int, layout: Layout, *, tail: bool = True) -> int:
+    """Windows in one run of ``total_samples`` samples (with its tail window)."""
+    W, S = layout.samples, layout.step
+    if total_samples < W:
         return 0
-    return 1 + (total_samples - layout.samples) // layout.step
+    n = 1 + (total_samples - W) // S
+    fresh = total_samples - ((n - 1) * S + W)
+    return n + int(tail and fresh >= W / 4)
 
 
 def describe(layout: Layout) -> str:

@@ -193,13 +193,16 @@ def read_record(path: str | Path) -> Record:
         if the samples fail the checks of `Record`.
     """
     path = Path(path)
+    if path.is_dir():
+        raise HosidInputError(
+            f"{path}: is a folder, not a record file (a .csv or .npz; hosid batch and hosid "
+            "monitor take folders)"
+        )
     reader = _READERS.get(path.suffix.lower())
     if reader is None:
         raise HosidInputError(
             f"{path}: unknown file type {path.suffix or '(none)'!r}; use .csv or .npz"
         )
-    if path.is_dir():
-        raise HosidInputError(f"{path}: is a directory, not a record file")
     if not path.is_file():
         raise HosidInputError(f"{path}: no such file")
     return reader(path)
