@@ -51,6 +51,7 @@ paper: $(STAMP)
 # resumes: delete records.csv to redo it).
 peers: $(STAMP)
 	$(PY) analyses/peers.py
+	$(PY) analyses/monitor_study.py
 
 # The statistical studies (hours on 2 cores; each resumes where it stopped): the
 # information limit per regime, the efficiency and calibration of the default fit and of
@@ -67,6 +68,7 @@ analyses: $(STAMP)
 	$(PY) analyses/silverbox_coverage.py
 	$(PY) analyses/paper_figures.py
 	$(PY) analyses/peers.py
+	$(PY) analyses/monitor_study.py
 
 clean:
 	rm -rf $(VENV) demo-out analyses/out .pytest_cache .benchmarks build src/*.egg-info
