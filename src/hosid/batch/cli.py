@@ -22,7 +22,7 @@ from ..check.diagnose import DEFAULT_REPLICATES
 from ..errors import HosidInputError
 from .tasks import ANALYSES
 
-__all__ = ["add_batch_parser", "cmd_batch"]
+__all__ = ["add_batch_parser", "cluster_options", "cmd_batch"]
 
 _ALL = ANALYSES
 _SPECTRAL = ("fit", "estimate")
@@ -122,8 +122,10 @@ def _names(text: str) -> list[str]:
     return [c.strip() for c in text.split(",") if c.strip()]
 
 
-def _batch_options(p: argparse.ArgumentParser, base) -> None:
-    p.add_argument("--out", required=True, metavar="DIR", help="the batch's folder")
+def cluster_options(p: argparse.ArgumentParser, base) -> None:
+    """``--workers`` or ``--scheduler``, ``--seed`` and ``--no-progress``: the options of
+    every command that runs on dask (``hosid batch``, ``hosid monitor``).
+    """
     where = p.add_mutually_exclusive_group()
     where.add_argument(
         "--workers", type=base._integer(1), help="local worker processes; default one per core"
@@ -131,6 +133,11 @@ def _batch_options(p: argparse.ArgumentParser, base) -> None:
     where.add_argument("--scheduler", metavar="ADDRESS", help="an existing dask scheduler")
     p.add_argument("--seed", type=base._integer(0), default=0, help="root seed, default 0")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _batch_options(p: argparse.ArgumentParser, base) -> None:
+    p.add_argument("--out", required=True, metavar="DIR", help="the batch's folder")
+    cluster_options(p, base)
     p.add_argument("--save-posterior", action="store_true", help="keep each posterior.nc")
     p.add_argument("--retry-errors", action="store_true", help="rerun tasks that failed")
 

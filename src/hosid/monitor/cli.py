@@ -26,7 +26,7 @@ _SKIP = ("--block-seconds", "--excitation-shape")
 def add_monitor_parser(sub) -> None:
     """Add ``hosid monitor`` to the sub-parsers ``sub``."""
     from .. import cli as base
-    from ..batch.cli import _flags
+    from ..batch.cli import _flags, cluster_options
 
     p = sub.add_parser(
         "monitor",
@@ -71,13 +71,7 @@ def add_monitor_parser(sub) -> None:
     )
     p.add_argument("--follow", action="store_true", help="keep reading a growing .csv file")
     p.add_argument("--poll", type=base._positive, default=2.0, metavar="S", help="default 2 s")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers", type=base._integer(1), help="local worker processes; default one per core"
-    )
-    where.add_argument("--scheduler", metavar="ADDRESS", help="an existing dask scheduler")
-    p.add_argument("--seed", type=base._integer(0), default=0, help="default 0")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    cluster_options(p, base)
     p.set_defaults(func=cmd_monitor)
 
 

@@ -81,6 +81,27 @@ def _check_settings(out: Path, settings: Mapping) -> None:
         )
 
 
+def _layout(source: Source, window, step, block_seconds, follow: bool):
+    """The windows' layout and, for a record of known length, their number.
+
+    Raises
+    ------
+    HosidInputError
+        If no window fits in the record.
+    """
+    total = None if follow else source.samples()
+    layout = choose_layout(
+        source, window=window, step=step, block_seconds=block_seconds, total_samples=total
+    )
+    n_windows = None if total is None else count(total, layout)
+    if n_windows == 0:
+        raise HosidInputError(
+            f"{source.path}: {total} samples ({total * layout.dt:g} s) hold no window of "
+            f"{layout.seconds:g} s"
+        )
+    return layout, n_windows
+
+
 def _tasks(source, layout, analysis, options, seed, meta, *, follow, poll, stop):
     from ..batch import Task
     from ..record import Record
@@ -172,20 +193,11 @@ def monitor(
     if not 0 < alpha < 1 or not 0 < level < 1:
         raise HosidInputError("alpha and level must lie between 0 and 1")
     source = Source(path)
-    total = None if follow else source.samples()
-    layout = choose_layout(
-        source, window=window, step=step, block_seconds=block_seconds, total_samples=total
-    )
+    layout, n_windows = _layout(source, window, step, block_seconds, follow)
     opts = options_for(analysis, {**(options or {}), "block_seconds": layout.block_seconds})
     base = read_baseline(baseline) if baseline is not None else None
     settings = _settings(source, layout, analysis, opts, seed)
     out = Path(out)
-    n_windows = None if total is None else count(total, layout)
-    if n_windows == 0:
-        raise HosidInputError(
-            f"{source.path}: {total} samples ({total * layout.dt:g} s) hold no window of "
-            f"{layout.seconds:g} s"
-        )
     echo(f"hosid monitor: {describe(layout)}" + (f", {n_windows} windows" if n_windows else ""))
     meta: list[tuple[int, float, float, str]] = []
     rows: dict[str, dict] = {}
