@@ -13,6 +13,7 @@ from hosid.components.identities import Identities
 from hosid.components.jets import time_derivatives
 from hosid.errors import HosidInputError
 from hosid.inference.estimate import estimate, prepare_state
+from hosid.inference.solutions import select_solution
 from hosid.model import Model
 from hosid.model.excitation import Spectrum, squared_modulus
 from hosid.model.simulate import narrowband_shape, simulate
@@ -175,6 +176,26 @@ def test_estimate_with_the_matching_filter():
     for k, v in truth.items():
         assert abs(est.values[k] - v) < 3.5 * est.sd[k], k
     assert est.test["p_value"] > 0.001
+
+
+def test_solution_kept_is_the_one_the_acceptable_weights_accept():
+    """Quadratic quasi-likelihoods -J/2 = -(floor + w |t - s|^2)/2.  The second
+    solution's weight is 1e-4 of the first's, so its own J (0.9) is below the first's
+    (12), but the first's weight gives it 12 + 1e4: the first is kept.  A solution its
+    own test rejects judges nothing: the third's sharp weight (J 500 of its own) would
+    give the first 500 + 1e6.  Without an acceptable solution the smallest own J wins.
+    """
+
+    def ql(centre, weight, floor):
+        return lambda t: -0.5 * (floor + weight * float(np.sum((np.asarray(t) - centre) ** 2)))
+
+    a, b, c = np.zeros(2), np.array([1.0, 0.0]), np.array([0.0, 1.0])
+    sharp, flat, wrong = ql(a, 1e4, 12.0), ql(b, 1.0, 0.9), ql(c, 1e6, 500.0)
+    assert select_solution([(a, sharp), (b, flat)], [0.1, 0.9]) == 0
+    assert select_solution([(b, flat), (a, sharp)], [0.9, 0.1]) == 1
+    assert select_solution([(a, sharp), (b, flat), (c, wrong)], [0.1, 0.9, 1e-90]) == 0
+    assert select_solution([(a, sharp), (c, wrong)], [1e-3, 1e-90]) == 0
+    assert select_solution([(b, flat)], [0.9]) == 0
 
 
 def test_a_filtered_force_rolls_off_where_a_band_stops():

@@ -38,11 +38,9 @@ import numpy as np
 
 from ..verdicts import Check
 from .estimate import Estimate
+from .gmm import HANSEN_P
 
 __all__ = ["HANSEN_P", "Calibrated", "calibrate"]
-
-#: Hansen p-value below which the quasi-likelihood is widened by its dispersion.
-HANSEN_P = 0.01
 
 
 @dataclass

@@ -60,6 +60,7 @@ from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, unbiased
 from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
+from .solutions import alternatives, select_solution
 
 __all__ = [
     "COSTS",
@@ -275,20 +276,20 @@ def estimate(
     support = model.default_priors(state.scales, constrained=False)
     lower = np.array([support[n].lower for n in model.param_names])
     upper = np.array([support[n].upper for n in model.param_names])
-    best, failure, solutions = None, None, []
+    failure, found = None, []
     for theta0 in starts:
         try:
             theta, ql = _solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
         except HosidInputError as exc:  # another start may do (a white filter is degenerate)
             failure = failure or exc
             continue
-        J = float(-2.0 * ql(theta))
-        solutions.append(theta)
-        if best is None or J < best[0]:
-            best = (J, theta, ql, theta0)
-    if best is None:
+        found.append((theta, ql, theta0))
+    if not found:
         raise failure
-    J_best, theta, ql, theta0 = best
+    pairs = [(t, q) for t, q, _ in found]
+    theta, ql, theta0 = found[select_solution(pairs, [hansen(q, t)["p_value"] for t, q in pairs])]
+    J_best = float(-2.0 * ql(theta))
+    solutions = [t for t, _, _ in found]
     # the impulses' sampling bias (.correction), where single impulses show: fewer than
     # one a sample (more make a force Gaussian at the record's scale, restored exactly)
     if model.has("rate") and simulations and theta[model.index("rate")] * state.dt < 1.0:
@@ -307,26 +308,10 @@ def estimate(
     cov = cov * np.outer(f, f)
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
-    others = _alternatives(ql, theta, solutions, cov, J_best)
+    others = alternatives(ql, theta, solutions, cov, J_best)
     return Estimate(
         model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others
     )
-
-
-def _alternatives(ql, theta, solutions, cov, J_best, gap: float = 9.21) -> list[np.ndarray]:
-    r"""The solutions more than 3 sd (:math:`\chi^2` of the Laplace covariance) from
-    ``theta`` whose quasi-likelihood under the best solution's weight is within ``gap``
-    (the 99 % point of :math:`\chi^2_2`) of its minimum, distinct among themselves.
-    """
-    out: list[np.ndarray] = []
-    prec = np.linalg.pinv(cov)
-    for th in solutions:
-        d = th - theta
-        far = float(d @ prec @ d) > 9.0 * th.size
-        if far and float(-2.0 * ql(th)) - J_best < gap:
-            if all(float((th - o) @ prec @ (th - o)) > 9.0 * th.size for o in out):
-                out.append(th)
-    return out
 
 
 def _solve_rounds(state, model, components, theta, rounds, logs, lower, upper):

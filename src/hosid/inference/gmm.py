@@ -38,6 +38,7 @@ from scipy import linalg, optimize, stats
 from ..components.base import Moments
 
 __all__ = [
+    "HANSEN_P",
     "BlockCovariance",
     "QuasiLikelihood",
     "Transformed",
@@ -45,6 +46,10 @@ __all__ = [
     "quasi_likelihood",
     "solve",
 ]
+
+#: Hansen p-value below which the equations disagree beyond chance: the quasi-likelihood
+#: is widened by its dispersion (:mod:`hosid.inference.calibrate`).
+HANSEN_P = 0.01
 
 
 @dataclass(frozen=True)

@@ -156,7 +156,8 @@ def whitened_pilots(
     misfit over the :math:`(\omega_f, \zeta_f)` grid (lower than their eight neighbours)
     are returned, best first: a filter near the oscillator's
     resonance can fit the spectrum with the two swapped, and the estimate keeps the
-    start whose equations agree best (:func:`hosid.inference.estimate.estimate`).
+    solution that every start's weight accepts best
+    (:func:`hosid.inference.estimate.select_solution`).
 
     Raises
     ------
