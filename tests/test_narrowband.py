@@ -178,24 +178,26 @@ def test_estimate_with_the_matching_filter():
     assert est.test["p_value"] > 0.001
 
 
-def test_solution_kept_is_the_one_the_acceptable_weights_accept():
-    """Quadratic quasi-likelihoods -J/2 = -(floor + w |t - s|^2)/2.  The second
-    solution's weight is 1e-4 of the first's, so its own J (0.9) is below the first's
-    (12), but the first's weight gives it 12 + 1e4: the first is kept.  A solution its
-    own test rejects judges nothing: the third's sharp weight (J 500 of its own) would
-    give the first 500 + 1e6.  Without an acceptable solution the smallest own J wins.
+def test_solution_kept_is_the_best_one_no_acceptable_weight_rejects():
+    """Quadratic quasi-likelihoods -J/2 = -(floor + w |t - s|^2)/2 on 2 df (the 99 %
+    point 9.2).  The second solution's weight is 1e-4 of the first's, so its own J (0.9)
+    is below the first's (3), but the first's weight rejects it (3 + 1e4): the first is
+    kept.  When two solutions reject each other the smaller own J wins, and a solution
+    its own test rejects (J 500) judges nothing.
     """
 
     def ql(centre, weight, floor):
         return lambda t: -0.5 * (floor + weight * float(np.sum((np.asarray(t) - centre) ** 2)))
 
     a, b, c = np.zeros(2), np.array([1.0, 0.0]), np.array([0.0, 1.0])
-    sharp, flat, wrong = ql(a, 1e4, 12.0), ql(b, 1.0, 0.9), ql(c, 1e6, 500.0)
-    assert select_solution([(a, sharp), (b, flat)], [0.1, 0.9]) == 0
-    assert select_solution([(b, flat), (a, sharp)], [0.9, 0.1]) == 1
-    assert select_solution([(a, sharp), (b, flat), (c, wrong)], [0.1, 0.9, 1e-90]) == 0
-    assert select_solution([(a, sharp), (c, wrong)], [1e-3, 1e-90]) == 0
-    assert select_solution([(b, flat)], [0.9]) == 0
+    sharp, flat, wrong = ql(a, 1e4, 3.0), ql(b, 1e-4, 0.9), ql(c, 1e6, 500.0)
+    assert select_solution([(a, sharp), (b, flat)], 2) == 0
+    assert select_solution([(b, flat), (a, sharp)], 2) == 1
+    both = [(a, ql(a, 30.0, 4.5)), (b, ql(b, 60.0, 7.2))]  # each rejects the other
+    assert select_solution(both, 2) == 0
+    assert select_solution([(a, sharp), (b, flat), (c, wrong)], 2) == 0
+    assert select_solution([(a, ql(a, 1e4, 20.0)), (c, wrong)], 2) == 0  # none acceptable
+    assert select_solution([(b, flat)], 2) == 0
 
 
 def test_a_filtered_force_rolls_off_where_a_band_stops():

@@ -286,8 +286,8 @@ def estimate(
         found.append((theta, ql, theta0))
     if not found:
         raise failure
-    pairs = [(t, q) for t, q, _ in found]
-    theta, ql, theta0 = found[select_solution(pairs, [hansen(q, t)["p_value"] for t, q in pairs])]
+    df = hansen(found[0][1], found[0][0])["df"]
+    theta, ql, theta0 = found[select_solution([(t, q) for t, q, _ in found], df)]
     J_best = float(-2.0 * ql(theta))
     solutions = [t for t, _, _ in found]
     # the impulses' sampling bias (.correction), where single impulses show: fewer than

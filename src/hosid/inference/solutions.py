@@ -13,43 +13,56 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from scipy import stats
 
 from .gmm import HANSEN_P, QuasiLikelihood
 
 __all__ = ["alternatives", "select_solution"]
 
 
-def select_solution(
-    found: Sequence[tuple[np.ndarray, QuasiLikelihood]], p_values: Sequence[float]
-) -> int:
-    r"""The index of the solution that the weights of the acceptable solutions accept
-    best: the smallest :math:`\max_{i \in A}J_i(\hat\theta_j)`, with :math:`J_i =
-    -2\ell_i` the quasi-likelihood prepared and weighted at solution :math:`i` and
-    :math:`A` the solutions whose own Hansen test passes (``p_values`` at least
-    :data:`hosid.inference.gmm.HANSEN_P`; none: the smallest own :math:`J` alone,
-    which then picks itself).
+def select_solution(found: Sequence[tuple[np.ndarray, QuasiLikelihood]], df: int) -> int:
+    r"""The index of the solution kept among the starts': the smallest own :math:`J`
+    among the solutions that no acceptable solution's weight rejects.
 
-    A solution's own :math:`J_j(\hat\theta_j)` does not compare across starts: the
-    weight is the inverse covariance of the equations at that solution, and where they
-    are noisy (a shaping filter whose whitening amplifies the record's top band) it is
-    small, so a solution the equations barely see gets a small :math:`J` of its own.
-    Measured on a white record of the ship-roll-like oscillator fitted with
-    ``narrowband_excitation`` (4000 s): the start with the filter below the resonance
-    ended at :math:`\omega_f = 9.1` rad/s (15 resonance frequencies, above the J2 band)
-    with :math:`J = 0.9` on 7 df and a Laplace sd of :math:`a_1` of 0.75 (the white
-    bound: 0.015); the three others ended above 18 rad/s with :math:`J` 12-14 and sd
-    0.015-0.017, and their weights gave the first one :math:`J` of 451 to 960 000.  A
-    solution its own test rejects judges nothing: on a white record of the paper
-    oscillator two starts ended with a filter of damping ratio 0.01 above the Nyquist
-    frequency, :math:`J` 469 and 786 of their own, and weights that gave the two
-    acceptable solutions (:math:`J` 12-14) :math:`J` above :math:`10^7`.
+    :math:`J_i(\theta) = -2\ell_i(\theta)` is the quasi-likelihood prepared and weighted
+    at solution :math:`i`; the acceptable solutions are those whose own test passes
+    (:math:`J_i(\hat\theta_i)` on ``df`` degrees of freedom, p at least
+    :data:`hosid.inference.gmm.HANSEN_P`), and an acceptable weight rejects solution
+    :math:`j` when :math:`J_i(\hat\theta_j)` fails the same test.  When every solution
+    is rejected by another, or none is acceptable, the smallest own :math:`J` of all.
+
+    A solution's own :math:`J` alone does not compare across starts: the weight is the
+    inverse covariance of the equations at that solution, and where they are noisy (a
+    shaping filter whose whitening amplifies the record's top band) it is small, so a
+    solution the equations barely see gets a small :math:`J` of its own.  Measured on a
+    white record of the ship-roll-like oscillator fitted with ``narrowband_excitation``
+    (4000 s): the start with the filter below the resonance ended at :math:`\omega_f =
+    9.1` rad/s (15 resonance frequencies, above the J2 band) with :math:`J = 0.9` on 7 df
+    and a Laplace sd of :math:`a_1` of 0.75 (the white bound: 0.015); the three others
+    ended above 18 rad/s with :math:`J` 12-14 and sd 0.015-0.017, and their weights gave
+    the first :math:`J` of 451 to 960 000.  Nor does the largest :math:`J` over the
+    weights: with the filter below the ship's resonance the true solution (:math:`J`
+    4.5) and the swapped one (7.2) rejected each other (21 and 68), and the swapped one's
+    weight was the harsher.  A solution its own test rejects judges nothing: on a white
+    record of the paper oscillator two starts ended with a filter of damping ratio 0.01
+    above the Nyquist frequency, :math:`J` 469 and 786 of their own, and weights that
+    gave the acceptable solutions :math:`J` above :math:`10^7`.
     """
-    if len(found) == 1:
-        return 0
-    own = [float(-2.0 * ql(theta)) for theta, ql in found]
-    judges = [i for i, p in enumerate(p_values) if p >= HANSEN_P] or [int(np.argmin(own))]
-    worst = [max(float(-2.0 * found[i][1](theta)) for i in judges) for theta, _ in found]
-    return int(np.argmin(worst))
+    own = np.array([float(-2.0 * ql(theta)) for theta, ql in found])
+    if len(found) == 1 or df <= 0:
+        return int(np.argmin(own))
+
+    def passes(J: float) -> bool:
+        return bool(stats.chi2.sf(J, df) >= HANSEN_P)
+
+    judges = [i for i in range(len(found)) if passes(own[i])]
+    kept = [
+        j
+        for j, (theta, _) in enumerate(found)
+        if all(passes(float(-2.0 * found[i][1](theta))) for i in judges if i != j)
+    ]
+    pool = kept or range(len(found))
+    return min(pool, key=lambda j: own[j])
 
 
 def alternatives(ql, theta, solutions, cov, J_best, gap: float = 9.21) -> list[np.ndarray]:
