@@ -83,11 +83,12 @@ def write_design(cases: Sequence[str], path: Path, records: int) -> Path:
     return path
 
 
-def run(cases, *, records, work, workers, n_steps, progress) -> dict[str, Path]:
-    """Fit every record with both models; the two tables."""
+def run(cases, *, records, work, workers, n_steps, progress, models=MODELS) -> dict[str, Path]:
+    """Fit every record with each of ``models`` (both by default); their tables."""
     design = write_design(cases, work / "design.csv", records)
     out = {}
-    for label, spec in MODELS.items():
+    for label in models:
+        spec = MODELS[label]
         tasks = design_tasks(
             read_design(design),
             analysis="fit",
@@ -218,6 +219,7 @@ def arguments(argv, doc: str, cases, work: Path, results: Path) -> argparse.Name
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=list(cases), choices=list(cases))
     ap.add_argument("--records", type=int, default=10)
+    ap.add_argument("--models", nargs="+", default=list(MODELS), choices=list(MODELS))
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--n-steps", type=int, default=None, help="fixed emcee steps per fit")
     ap.add_argument("--summary", action="store_true", help="only write the summary")
@@ -262,9 +264,13 @@ def main(argv: Sequence[str] | None = None) -> Path:
     if not args.summary:
         tables = run(
             args.cases, records=args.records, work=args.work, workers=args.workers,
-            n_steps=args.n_steps, progress=not args.no_progress,
+            n_steps=args.n_steps, progress=not args.no_progress, models=args.models,
         )  # fmt: skip
     tables = keep_tables(tables, args.work, args.out)
+    for m in MODELS:  # a model not rerun keeps its kept rows
+        if m not in tables and (args.out / f"{m}.csv").is_file():
+            tables[m] = args.out / f"{m}.csv"
+    tables = {m: tables[m] for m in MODELS if m in tables}
     path = write(summarize(tables, bounds(args.cases, args.out / "bounds.json")), args.out)
     print(f"wrote {path}")
     return path

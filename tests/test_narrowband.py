@@ -166,6 +166,32 @@ def test_whitened_identities_reduce_to_the_white_ones():
     np.testing.assert_array_less(np.abs(mn.mean(th)[:2] - mw.mean(white.theta)), 0.1 * se)
 
 
+def test_whitened_identities_are_scaled_by_their_own_covariance_at_theta():
+    """The identities' term of the quasi-likelihood is the continuously updated one:
+    with the pilot's factor L0, |L0^-1 mean(theta)|^2 = u(theta)' S(theta)^-1 u(theta),
+    where u(theta) is the block mean and S(theta) the block covariance at theta (the
+    block values at theta are the influence of the identities prepared at theta); a batch
+    of thetas gives each one's value.
+    """
+    p = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
+    rec = simulate(p, duration=400.0, dt=0.02, rng=np.random.default_rng(8))
+    model = Model.from_spec(NB)
+    state = prepare_state(rec, model)
+    # the drift moves, the force does not: the statistics (their restoration depends on
+    # the force) are the same prepared at either
+    th0, th1 = _theta(), _theta() * np.r_[1.3, 0.8, 1.05, 1.2, 1, 1, 1]
+    m0 = Identities().prepare(state, model, th0)
+    m1 = Identities().prepare(state, model, th1)
+    B = m0.influence.shape[0]
+    L0 = np.linalg.cholesky(m0.influence.T @ m0.influence / (B - 1))
+    S1 = m1.influence.T @ m1.influence / (B - 1)
+    u1 = m1.mean(th1)  # prepared at th1, its mean there is the plain block mean
+    z = np.linalg.solve(L0, m0.mean(th1))
+    assert math.isclose(z @ z, u1 @ np.linalg.solve(S1, u1), rel_tol=1e-8)
+    assert not np.allclose(m0.mean(th1), u1, rtol=1e-3)  # the scale did change
+    np.testing.assert_allclose(m0.mean(np.stack([th0, th1]))[1], m0.mean(th1), rtol=1e-10)
+
+
 def test_estimate_with_the_matching_filter():
     """One record of the paper oscillator under a filter peaked just above its resonance
     (the white model gets a1 < 0 there): every parameter within 3.5 of its sd.
