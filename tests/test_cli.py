@@ -149,6 +149,21 @@ def test_fit_writes_the_posterior_and_the_report(fitted, capsys):
     assert (fitted / "corner.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_fit_records_the_library_versions(fitted):
+    """summary.json and posterior.nc's attributes list the versions of hosid and of the
+    libraries the fit ran on (as installed: importlib.metadata).
+    """
+    from importlib.metadata import version
+
+    from hosid.output.results import attr, load
+
+    versions = json.loads((fitted / "summary.json").read_text())["versions"]
+    for name in ("hosid", "numpy", "scipy", "emcee", "arviz", "numba", "matplotlib"):
+        assert versions[name] == version(name), name
+    assert versions["hosid"] == __version__
+    assert attr(load(fitted / "posterior.nc"), "versions") == versions
+
+
 def test_fit_prints_its_summary(workdir, capsys):
     out = workdir / "fit2"
     argv = ["fit", str(workdir / "rec.csv"), "--steps", "200", "--no-progress", "--seed", "2"]

@@ -163,6 +163,15 @@ def test_spectrum_plot_linear_equivalent(paper_fit):
     assert np.median(ratio) == pytest.approx(1.0, abs=0.5)
 
 
+def test_spectrum_median_level_without_the_draws_by_omega_array(paper_fit):
+    """A white level is the median of S0 times 1: the same as the median over the
+    ``(draws, omega)`` array it no longer builds.
+    """
+    omega = paper_fit["observed_data"]["omega"].values
+    full = np.median(spectrum_plots._shape_draws(paper_fit, omega, None), axis=0)
+    np.testing.assert_allclose(spectrum_plots._median_level(paper_fit, omega), full, rtol=1e-12)
+
+
 def test_force_spectrum_plot_sets_the_inferred_force_against_the_model(paper_fit):
     (ax,) = spectrum_plots.force_spectrum_plot(paper_fit).axes
     assert ax.get_yscale() == "log" and "m²/s³" in ax.get_ylabel()
@@ -258,3 +267,69 @@ def test_write_report_replaces_files_and_reports_errors(paper_fit, tmp_path):
     blocker.write_text("x")
     with pytest.raises(HosidInputError, match="cannot create"):
         write_report(paper_fit, blocker / "sub", dpi=30)
+
+
+# ------------------------------------------------------------------ versions, summary, netCDF
+CORE = ("hosid", "numpy", "scipy", "emcee", "arviz", "numba", "matplotlib")
+
+
+def test_versions_in_the_tree_the_netcdf_and_summary_json(paper_fit, tmp_path):
+    import importlib.metadata
+
+    from hosid.output.results import load, save, versions
+
+    stored = attr(paper_fit, "versions")
+    assert stored == versions()
+    for name in CORE:
+        assert stored[name] == importlib.metadata.version(name), name
+    assert attr(load(save(paper_fit, tmp_path / "p.nc")), "versions") == stored
+    paths = write_report(paper_fit, tmp_path / "report", dpi=30)
+    assert json.loads(paths[1].read_text(encoding="utf-8"))["versions"] == stored
+    html = paths[0].read_text(encoding="utf-8")
+    assert f"numpy {stored['numpy']}" in html and f"hosid {stored['hosid']}" in html
+
+
+def test_a_fit_written_before_the_versions_reports_none(paper_fit, tmp_path):
+    tree = paper_fit.copy(deep=True)
+    del tree.attrs["versions_json"]
+    paths = write_report(tree, tmp_path, dpi=30)
+    assert json.loads(paths[1].read_text(encoding="utf-8"))["versions"] is None
+    assert "numpy " not in paths[0].read_text(encoding="utf-8")
+
+
+def test_summary_columns_are_arviz_summary_s(paper_fit):
+    import warnings
+
+    import arviz as az
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        table = az.summary(paper_fit, kind="all", ci_prob=0.9, round_to="none")
+    params = summarize(paper_fit, warn=False)["parameters"]
+    assert list(params) == list(table.index)
+    for name, row in params.items():
+        for column in ("mean", "sd", "r_hat", "ess_bulk", "ess_tail"):
+            assert row[column] == pytest.approx(float(table.loc[name, column]), rel=1e-12)
+
+
+def test_saving_a_fit_neither_loads_distributed_nor_hides_it(paper_fit, tmp_path):
+    """xarray's writer asks dask for its scheduler; ``save`` answers without importing
+    ``distributed``, and dask finds it again afterwards.
+    """
+    import subprocess
+    import sys
+
+    pytest.importorskip("distributed")
+    from hosid.output.results import save
+
+    path = save(paper_fit, tmp_path / "p.nc")
+    code = f"""
+import sys
+from hosid.output.results import load, save
+save(load({str(path)!r}), {str(tmp_path / "q.nc")!r})
+import dask.base
+print("distributed" in sys.modules, dask.base._distributed_available())
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["False", "True"]

@@ -12,15 +12,17 @@ failure ends with one line on stderr and no traceback:
 from __future__ import annotations
 
 import argparse
-import math
 import shlex
 import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from hosid import __version__, commands
-from hosid.batch.cli import add_batch_parser
-from hosid.check.diagnose import DEFAULT_REPLICATES
+from hosid.arguments import integer as _integer
+from hosid.arguments import nonnegative as _nonnegative
+from hosid.arguments import number as _number
+from hosid.arguments import positive as _positive
+from hosid.arguments import probability as _probability
 from hosid.errors import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
@@ -28,11 +30,22 @@ from hosid.errors import (
     HosidInputError,
     RecordRejected,
 )
-from hosid.monitor.cli import add_monitor_parser
 
-__all__ = ["build_parser", "main"]
+__all__ = ["COMMANDS", "build_parser", "main"]
 
 EXIT_USAGE = EXIT_INPUT
+#: The commands and their help in ``hosid --help``, in order (batch's and monitor's own
+#: parsers repeat theirs).
+COMMANDS = {
+    "simulate": "simulate a response record",
+    "estimate": "estimate the parameters (mode and sd, no sampling)",
+    "fit": "sample the posterior (emcee)",
+    "diagnose": "find the gap between model and record; name the missing effect",
+    "report": "rewrite a fit's report from DIR/posterior.nc",
+    "demo": "simulate the paper oscillator and fit it",
+    "batch": "many records, or a simulation design, on dask (resumable)",
+    "monitor": "track the parameters over a long or growing record; name changes",
+}
 
 
 class _UsageError(Exception):
@@ -42,50 +55,6 @@ class _UsageError(Exception):
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         raise _UsageError(message)
-
-
-def _number(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
-    return value
-
-
-def _positive(text: str) -> float:
-    value = _number(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
-    return value
-
-
-def _nonnegative(text: str) -> float:
-    value = _number(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be non-negative, got {text!r}")
-    return value
-
-
-def _probability(text: str) -> float:
-    value = _number(text)
-    if not 0 < value < 1:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
-    return value
-
-
-def _integer(minimum: int) -> Callable[[str], int]:
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {text!r}")
-        return value
-
-    return parse
 
 
 # --- parser ---------------------------------------------------------------------------
@@ -143,8 +112,16 @@ def _record_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``hosid`` argument parser (its ``error`` raises instead of exiting)."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``hosid`` argument parser (its ``error`` raises instead of exiting).
+
+    Parameters
+    ----------
+    command : str, optional
+        Build this command's options alone: the others are listed with their help and
+        take none, so that parsing imports no more than the command needs (what
+        :func:`main` does).  Default: every command's options.
+    """
     parser = _Parser(
         prog="hosid",
         allow_abbrev=False,
@@ -154,8 +131,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"hosid {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, text in COMMANDS.items():
+        if command in (None, name):
+            _ADD[name](sub)
+        else:
+            sub.add_parser(name, help=text, allow_abbrev=False)
+    return parser
 
-    sim = sub.add_parser("simulate", help="simulate a response record", allow_abbrev=False)
+
+def _add(sub, name: str) -> argparse.ArgumentParser:
+    return sub.add_parser(name, help=COMMANDS[name], allow_abbrev=False)
+
+
+def _add_simulate(sub) -> None:
+    sim = _add(sub, "simulate")
     for name, kind, default in (
         ("a1", _nonnegative, 0.5),
         ("n1", _nonnegative, 0.5),
@@ -218,9 +207,9 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", required=True, help="output file, .csv or .npz")
     sim.set_defaults(func=commands.cmd_simulate)
 
-    est = sub.add_parser(
-        "estimate", help="estimate the parameters (mode and sd, no sampling)", allow_abbrev=False
-    )
+
+def _add_estimate(sub) -> None:
+    est = _add(sub, "estimate")
     est.add_argument("record", help="record file, .csv (columns t,x) or .npz")
     est.add_argument(
         "--cost",
@@ -234,7 +223,9 @@ def build_parser() -> argparse.ArgumentParser:
     est.add_argument("--json", metavar="FILE", help="also write the result as JSON")
     est.set_defaults(func=commands.cmd_estimate)
 
-    fit = sub.add_parser("fit", help="sample the posterior (emcee)", allow_abbrev=False)
+
+def _add_fit(sub) -> None:
+    fit = _add(sub, "fit")
     fit.add_argument("record", help="record file, .csv (columns t,x) or .npz")
     fit.add_argument(
         "--cost",
@@ -266,11 +257,11 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--out", required=True, metavar="DIR", help="output directory")
     fit.set_defaults(func=commands.cmd_fit)
 
-    dia = sub.add_parser(
-        "diagnose",
-        allow_abbrev=False,
-        help="find the gap between model and record; name the missing effect",
-    )
+
+def _add_diagnose(sub) -> None:
+    from hosid.check.diagnose import DEFAULT_REPLICATES
+
+    dia = _add(sub, "diagnose")
     dia.add_argument("record", help="record file, .csv (columns t,x) or .npz")
     dia.add_argument(
         "--model",
@@ -317,22 +308,51 @@ def build_parser() -> argparse.ArgumentParser:
     dia.add_argument("--out", required=True, metavar="DIR", help="output directory")
     dia.set_defaults(func=commands.cmd_diagnose)
 
-    rep = sub.add_parser(
-        "report", help="rewrite a fit's report from DIR/posterior.nc", allow_abbrev=False
-    )
+
+def _add_report(sub) -> None:
+    rep = _add(sub, "report")
     rep.add_argument("dir", metavar="DIR", help="directory of a fit (holding posterior.nc)")
     rep.set_defaults(func=commands.cmd_report)
 
-    demo = sub.add_parser(
-        "demo", help="simulate the paper oscillator and fit it", allow_abbrev=False
-    )
+
+def _add_demo(sub) -> None:
+    demo = _add(sub, "demo")
     demo.add_argument("--out", default="demo-out", help="output directory, default demo-out")
     demo.add_argument("--seed", type=_integer(0), default=2026, help="default 2026")
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
     demo.set_defaults(func=commands.cmd_demo)
+
+
+def _add_batch(sub) -> None:
+    from hosid.batch.cli import add_batch_parser
+
     add_batch_parser(sub)
+
+
+def _add_monitor(sub) -> None:
+    from hosid.monitor.cli import add_monitor_parser
+
     add_monitor_parser(sub)
-    return parser
+
+
+_ADD: dict[str, Callable[[argparse._SubParsersAction], None]] = {
+    "simulate": _add_simulate,
+    "estimate": _add_estimate,
+    "fit": _add_fit,
+    "diagnose": _add_diagnose,
+    "report": _add_report,
+    "demo": _add_demo,
+    "batch": _add_batch,
+    "monitor": _add_monitor,
+}
+
+
+def _command(argv: Sequence[str]) -> str:
+    """The command of ``argv``: its first word that is not an option (``hosid`` itself
+    takes no option with a value), ``""`` when it has none or an unknown one.
+    """
+    first = next((a for a in argv if not a.startswith("-")), "")
+    return first if first in COMMANDS else ""
 
 
 def _resume_hint(args: argparse.Namespace) -> str:
@@ -350,7 +370,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = None
     try:
-        parser = build_parser()
+        parser = build_parser(_command(argv))
         args = parser.parse_args(argv)
         if args.command is None:
             parser.error(

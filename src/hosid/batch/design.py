@@ -3,28 +3,28 @@
 A design is a table (CSV with a header, or a JSON list of objects), one row per
 parameter set and record length:
 
-============  =====================================================================
-column        meaning
-============  =====================================================================
-``name``      the row's label (default ``row<i>``); records are ``<name>-<seed>``
-``key``       the row's seed key, an integer (default its position); records of
-              the row use ``SeedSequence(seed).spawn`` position ``(key, seed number)``
-``seeds``     how many records (seed numbers ``0 .. seeds - 1``; default 1)
-``duration``  record length in seconds (default 2000)
-``dt``        sampling interval in seconds (default 0.02)
-``simulator`` ``hosid`` (:func:`hosid.model.simulate`, default) or
-              ``FILE.py:FUNCTION`` (relative to the design's folder) or
-              ``module:function``, called as ``f(params, duration=, dt=, rng=, name=)``
-              and returning a :class:`~hosid.record.Record` or ``(record, velocity)``
-``entropy``   optional integers (a JSON list, or separated by spaces) that name the
-              row's random streams instead of its key: record ``i`` uses
-              ``SeedSequence([seed, *entropy, i])`` (a study's own streams, so that
-              the batch reproduces records it made before)
-a1 ... S0     the true parameters (:data:`hosid.model.simulate.SIM_KEYS`); empty = absent
-change_at     a step (or with ``ramp``, a ramp) of the parameters ``a1_after``,
-              ``n1_after``, ``a2_after``, ``n2_after``, ``S0_after`` ... at that time
-              (s; :data:`hosid.model.change.FLAT_KEYS`)
-============  =====================================================================
+=============  =====================================================================
+column         meaning
+=============  =====================================================================
+``name``       the row's label (default ``row<i>``); records are ``<name>-<seed>``
+``key``        the row's seed key, an integer (default its position); records of
+               the row use ``SeedSequence(seed).spawn`` position ``(key, seed number)``
+``seeds``      how many records (seed numbers ``0 .. seeds - 1``; default 1)
+``duration``   record length in seconds (default 2000)
+``dt``         sampling interval in seconds (default 0.02)
+``simulator``  ``hosid`` (:func:`hosid.model.simulate`, default) or
+               ``FILE.py:FUNCTION`` (relative to the design's folder) or
+               ``module:function``, called as ``f(params, duration=, dt=, rng=, name=)``
+               and returning a :class:`~hosid.record.Record` or ``(record, velocity)``
+``entropy``    optional integers (a JSON list, or separated by spaces) that name the
+               row's random streams instead of its key: record ``i`` uses
+               ``SeedSequence([seed, *entropy, i])`` (a study's own streams, so that
+               the batch reproduces records it made before)
+a1 ... S0      the true parameters (:data:`hosid.model.simulate.SIM_KEYS`); empty = absent
+change_at      a step (or with ``ramp``, a ramp) of the parameters ``a1_after``,
+               ``n1_after``, ``a2_after``, ``n2_after``, ``S0_after`` ... at that time
+               (s; :data:`hosid.model.change.FLAT_KEYS`)
+=============  =====================================================================
 
 Keys fix the records: adding rows, or seeds to a row, leaves every other record as it
 was.  The simulated velocity, when the simulator returns it, gives the true equivalent

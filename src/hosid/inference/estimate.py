@@ -21,14 +21,14 @@ acceleration spectrum shows that the excitation stops below the Nyquist frequenc
 Component sets (``cost``; the restoring identities are the paper's moment method, J4
 gives equations along the damping and :math:`S_0` only):
 
-=========  ===================================================  ======================
-``cost``   components                                           what it is
-=========  ===================================================  ======================
-``None``   identities (all drift terms) + J2 + level + kurtosis the default: efficient
-``"J2"``   identities (restoring terms) + J2                    paper's second order
-``"J4A"``  identities (restoring terms) + J2 + J4A              paper's protocol, eq 59
-``"J4B"``  identities (restoring terms) + J2 + J4B              eq 62-63
-=========  ===================================================  ======================
+=========  =====================================================  ======================
+``cost``   components                                             what it is
+=========  =====================================================  ======================
+``None``   identities (all drift terms) + J2 + level + kurtosis   the default: efficient
+``"J2"``   identities (restoring terms) + J2                      paper's second order
+``"J4A"``  identities (restoring terms) + J2 + J4A                paper's protocol, eq 59
+``"J4B"``  identities (restoring terms) + J2 + J4B                eq 62-63
+=========  =====================================================  ======================
 """
 
 from __future__ import annotations

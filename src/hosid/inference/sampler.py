@@ -65,7 +65,7 @@ def diagnostics(u: np.ndarray) -> dict[str, float]:
     """The worst rank-normalized R-hat and bulk and tail ESS over the coordinates of
     ``u`` ``(walker, draw, p)`` (arviz).
     """
-    import arviz as az
+    import arviz_stats as az  # arviz's rhat and ess, without its plotting (pyplot)
     import xarray as xr
 
     if u.shape[1] < 4:

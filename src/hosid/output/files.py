@@ -25,11 +25,12 @@ from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
-
-import jinja2
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING
 
 from ..errors import HosidInputError
+
+if TYPE_CHECKING:  # pragma: no cover - matplotlib and jinja2 load with the first figure/page
+    from matplotlib.figure import Figure
 
 __all__ = [
     "LOCK_NAME",
@@ -64,6 +65,8 @@ def b64(data: bytes) -> str:
 
 def render(template: str, filters: Mapping[str, Callable] | None = None, **context) -> str:
     """Render ``output/templates/<template>`` (autoescaped, strict about undefined names)."""
+    import jinja2
+
     env = jinja2.Environment(
         loader=jinja2.PackageLoader("hosid", "output/templates"),
         autoescape=True,

@@ -207,6 +207,12 @@ def _state(summary: Mapping[str, Any]) -> list[tuple[str, str]]:
     return _pairs({k: v for k, v in rows.items() if v is not None})
 
 
+def _versions(summary: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """The provenance row of the libraries' versions, as text (``3.10`` is no number)."""
+    known = {k: v for k, v in (summary.get("versions") or {}).items() if v}
+    return [("versions", ", ".join(f"{k} {v}" for k, v in known.items()))] if known else []
+
+
 def _context(
     tree: xr.DataTree, summary: Mapping[str, Any], images: Mapping[str, bytes]
 ) -> dict[str, Any]:
@@ -236,7 +242,7 @@ def _context(
         "timings": _pairs({f"{k} (s)": v for k, v in timings.items()}),
         "priors": _pairs(summary.get("priors")),
         "settings": _pairs(summary.get("settings")),
-        "provenance": _pairs({k: summary.get(k) for k in _PROVENANCE}),
+        "provenance": _pairs({k: summary.get(k) for k in _PROVENANCE}) + _versions(summary),
         "figures": [
             {"stem": k, "caption": CAPTIONS.get(k, k), "data": b64(v)} for k, v in images.items()
         ],

@@ -22,21 +22,25 @@ Groups (``posterior.nc`` holds the same):
     The calibrated quasi-log-likelihood over an ``(a1, n1)`` grid, the other parameters
     at the estimate: the valley of J2 and the twin minima of J4 (paper Figures 7-8).
 
-Root attributes: ``created_at``, ``inference_library`` (emcee) and its version, the
-model, components, calibration, settings, state, sampler diagnostics and timings
-(mappings as JSON strings ``<key>_json``).
+Root attributes: ``created_at``, ``inference_library`` (emcee) and its version,
+``versions`` (:func:`versions`: hosid's and its libraries'), the model, components,
+calibration, settings, state, sampler diagnostics and timings (mappings as JSON strings
+``<key>_json``).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import platform
+import sys
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
-import arviz as az
 import numpy as np
 import xarray as xr
 
@@ -45,6 +49,7 @@ from ..verdicts import ESS_MIN, RHAT_MAX, Check, overall
 
 __all__ = [
     "ESS_MIN",
+    "LIBRARIES",
     "RHAT_MAX",
     "ConvergenceWarning",
     "attr",
@@ -54,7 +59,11 @@ __all__ = [
     "parameter_names",
     "save",
     "summarize",
+    "versions",
 ]
+
+#: The distributions whose versions every result records (:func:`versions`).
+LIBRARIES = ("hosid", "numpy", "scipy", "emcee", "arviz", "numba", "matplotlib", "xarray")
 
 
 class ConvergenceWarning(UserWarning):
@@ -78,6 +87,20 @@ def jsonable(value: Any) -> Any:
     return value
 
 
+def versions() -> dict[str, str | None]:
+    """The installed versions of :data:`LIBRARIES` and Python's, by name (``None`` for a
+    library that is not installed); read from the installed metadata, nothing imported.
+    """
+    out: dict[str, str | None] = {}
+    for name in LIBRARIES:
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            out[name] = None
+    out["python"] = platform.python_version()
+    return out
+
+
 def build_tree(
     *,
     posterior: Mapping[str, np.ndarray],
@@ -90,7 +113,11 @@ def build_tree(
     likelihood_map: Mapping[str, np.ndarray] | None = None,
     attrs: Mapping[str, Any] | None = None,
 ) -> xr.DataTree:
-    """Assemble a fit (module docstring) with :func:`arviz.from_dict`."""
+    """Assemble a fit (module docstring) with :func:`arviz.from_dict`; the root
+    attributes are ``attrs`` and ``versions`` (:func:`versions`, unless ``attrs`` has them).
+    """
+    from arviz_base import from_dict  # arviz.from_dict, without arviz's plotting (pyplot)
+
     omega = np.asarray(observed_data["omega"])
     dims = {k: ["omega"] for k in observed_data if k != "omega"}
     dims.update({"theta_hat": ["param"], "laplace_cov": ["param", "param_"]})
@@ -99,7 +126,7 @@ def build_tree(
     with warnings.catch_warnings():
         # emcee's walkers are the chains: a short run has more of them than draws
         warnings.filterwarnings("ignore", message=".*chain dimension.*", category=UserWarning)
-        tree = az.from_dict(
+        tree = from_dict(
             {
                 "posterior": dict(posterior),
                 "sample_stats": dict(sample_stats),
@@ -121,7 +148,7 @@ def build_tree(
                 },
             )
         )
-    for k, v in (attrs or {}).items():
+    for k, v in {**(attrs or {}), "versions": (attrs or {}).get("versions") or versions()}.items():
         if v is None:
             continue
         if isinstance(v, Mapping | list | tuple):
@@ -165,10 +192,36 @@ def parameter_names(tree: xr.DataTree) -> list[str]:
     return [k for k in tree["posterior"].data_vars if k != "a1eq"]
 
 
+@contextmanager
+def _without_distributed() -> Iterator[None]:
+    """Refuse imports of dask's ``distributed`` while the block runs, unless it is loaded.
+
+    xarray's ``to_netcdf`` asks dask which scheduler is active, and dask imports
+    ``distributed`` to find out (about half a second), although a fit holds no dask arrays:
+    refused, the answer is "none", which is what in-memory arrays need.  dask remembers
+    the refusal (``dask.base._DISTRIBUTED_AVAILABLE``): it is forgotten again, so that
+    the process can still use ``distributed`` later.  A process that uses it already
+    (``hosid batch``) is left alone.
+    """
+    if "distributed" in sys.modules:
+        yield
+        return
+    sys.modules["distributed"] = None  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        if sys.modules.get("distributed", 0) is None:
+            del sys.modules["distributed"]
+        base = sys.modules.get("dask.base")
+        if getattr(base, "_DISTRIBUTED_AVAILABLE", None) is False:
+            base._DISTRIBUTED_AVAILABLE = None  # type: ignore[union-attr]
+
+
 def save(tree: xr.DataTree, path: str | Path) -> Path:
     """Write a fit to netCDF (``h5netcdf``)."""
     path = Path(path)
-    tree.to_netcdf(path, engine="h5netcdf")
+    with _without_distributed():
+        tree.to_netcdf(path, engine="h5netcdf")
     return path
 
 
@@ -193,7 +246,7 @@ def load(path: str | Path) -> xr.DataTree:
 
 
 def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
-    """Posterior summary (:func:`arviz.summary`) with convergence checks.
+    """Posterior summary (the columns of :func:`arviz.summary`) with convergence checks.
 
     Per variable: ``mean``, ``sd``, the 5 / 25 / 50 / 75 / 95 % quantiles, ``r_hat``,
     ``ess_bulk``, ``ess_tail``.  ``checks`` lists the fit's verdicts
@@ -201,29 +254,33 @@ def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
     is the worst of them; ``forced`` says that a record that failed a check was fitted
     anyway.  ``converged`` is true when every R-hat is below
     :data:`RHAT_MAX` and every ESS at least :data:`ESS_MIN`; otherwise the failures are
-    listed (and a :class:`ConvergenceWarning` issued when ``warn``).
+    listed (and a :class:`ConvergenceWarning` issued when ``warn``).  ``versions`` are
+    those the fit was made with (:func:`versions`; ``None`` for a fit written before
+    hosid recorded them).
     """
+    from arviz_stats import ess, rhat  # what arviz.summary computes, without its MCSE
+
+    post = tree["posterior"].to_dataset()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         # short chains: arviz warns when walkers (chains) outnumber draws
         warnings.filterwarnings("ignore", message=".*chain dimension.*", category=UserWarning)
-        table = az.summary(tree, kind="all", ci_prob=0.9, round_to="none")
-    post = tree["posterior"].to_dataset()
+        r_hat, bulk, tail = rhat(post), ess(post, method="bulk"), ess(post, method="tail")
     params: dict[str, dict[str, float]] = {}
     failures = []
     for k in post.data_vars:
         v = post[k].values.ravel()
         q = np.quantile(v, [0.05, 0.25, 0.5, 0.75, 0.95])
         row = {
-            "mean": float(table.loc[k, "mean"]),
-            "sd": float(table.loc[k, "sd"]),
+            "mean": float(np.mean(v)),
+            "sd": float(np.std(v, ddof=1)),
             **{
                 f"q{int(100 * p):02d}": float(x)
                 for p, x in zip((0.05, 0.25, 0.5, 0.75, 0.95), q, strict=True)
             },
-            "r_hat": float(table.loc[k, "r_hat"]),
-            "ess_bulk": float(table.loc[k, "ess_bulk"]),
-            "ess_tail": float(table.loc[k, "ess_tail"]),
+            "r_hat": float(r_hat[k]),
+            "ess_bulk": float(bulk[k]),
+            "ess_tail": float(tail[k]),
         }
         params[k] = row
         if not row["r_hat"] < RHAT_MAX:
@@ -258,4 +315,5 @@ def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
         "calibration": attr(tree, "calibration"),
         "settings": attr(tree, "settings"),
         "truths": attr(tree, "truths"),
+        "versions": attr(tree, "versions"),
     }

@@ -36,6 +36,22 @@ def _shape_draws(tree: xr.DataTree, omega: np.ndarray, most: int | None = 400):
     return spectrum.S0(theta)[:, None] * spectrum.shape(omega, theta)
 
 
+def _median_level(tree: xr.DataTree, omega: np.ndarray) -> np.ndarray | None:
+    r"""The posterior median of :math:`S_0L(\omega)` at every ``omega`` over all draws, or
+    ``None`` (:func:`_shape_draws`).  A shape that no parameter moves (white noise, a
+    measured table) scales every draw alike: the median of :math:`S_0` times the shape,
+    without the ``(draws, omega)`` array.
+    """
+    model = stored_model(tree)
+    if model is None or not all(p in tree["posterior"].data_vars for p in model.param_names):
+        return None
+    spectrum = Spectrum(model)
+    if spectrum.i_wb is None and not any(t.params for t, _ in spectrum.terms):
+        theta = np.array([[float(_draws(tree, p)[0]) for p in model.param_names]])
+        return float(np.median(_draws(tree, "S0"))) * spectrum.shape(omega, theta)[0]
+    return np.median(_shape_draws(tree, omega, None), axis=0)
+
+
 def spectrum_plot(tree: xr.DataTree) -> Figure:
     r"""The record's displacement spectrum and the fit's linear-equivalent prediction.
 
@@ -66,11 +82,10 @@ def spectrum_plot(tree: xr.DataTree) -> Figure:
     post = tree["posterior"].data_vars
     state = attr(tree, "state") or {}
     sigma_v = attr(tree, "sigma_v", state.get("sigma_v"))
-    force = _shape_draws(tree, omega, None)
-    if "a1eq" in post and force is not None and sigma_v is not None:
+    level = _median_level(tree, omega)
+    if "a1eq" in post and level is not None and sigma_v is not None:
         a2eq = float(sigma_v) ** 2 / _sigma_x(tree) ** 2
         a1eq = float(np.median(_draws(tree, "a1eq")))
-        level = np.median(force, axis=0)
         model = level / ((a2eq - omega**2) ** 2 + a1eq**2 * omega**2)
         ax.plot(omega, model, color="C3", label="linear equivalent, posterior median")
     ax.set_yscale("log")

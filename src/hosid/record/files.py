@@ -100,9 +100,14 @@ def _column(path: Path, rows: list[list[str]], lines: list[int], name: str, i: i
 
 def _read_csv(path: Path) -> Record:
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise HosidInputError(f"cannot read {path}: {exc}") from None
+        text = path.read_text(encoding="utf-8-sig")  # a spreadsheet's byte-order mark skipped
+    except UnicodeDecodeError as exc:
+        raise HosidInputError(
+            f"{path}: not a text file (byte {exc.object[exc.start]:#04x} at offset {exc.start} "
+            "is not UTF-8); a .csv record is text with a header naming t and x"
+        ) from None
+    except OSError as exc:
+        raise HosidInputError(f"cannot read {path}: {exc.strerror or exc}") from None
     lines = text.splitlines()
     if not lines or not lines[0].strip():
         raise HosidInputError(f"{path}: empty file, expected a header line naming t and x")
@@ -186,11 +191,11 @@ def read_record(path: str | Path) -> Record:
     Raises
     ------
     HosidInputError
-        If the file is missing, a directory, unreadable, empty or of unknown type, if a
-        column is missing or a cell is not a number (named by column and line), if a
-        segment label is not an integer or a segment not contiguous, if the times of a
-        segment are not uniform (a step off the median by more than 1e-6 relative), or
-        if the samples fail the checks of `Record`.
+        If the file is missing, a folder, not a regular file, unreadable, of unknown
+        type, empty or (a CSV) not UTF-8 text, if a column is missing or a cell is not a
+        number (named by column and line), if a segment label is not an integer or a
+        segment not contiguous, if the times of a segment are not uniform (a step off the
+        median by more than 1e-6 relative), or if the samples fail the checks of `Record`.
     """
     path = Path(path)
     if path.is_dir():
@@ -203,8 +208,10 @@ def read_record(path: str | Path) -> Record:
         raise HosidInputError(
             f"{path}: unknown file type {path.suffix or '(none)'!r}; use .csv or .npz"
         )
-    if not path.is_file():
+    if not path.exists():
         raise HosidInputError(f"{path}: no such file")
+    if not path.is_file():
+        raise HosidInputError(f"{path}: not a regular file (a .csv or .npz record is read whole)")
     return reader(path)
 
 
