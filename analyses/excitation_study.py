@@ -248,7 +248,7 @@ def keep_tables(tables: dict[str, Path], work: Path, out: Path) -> dict[str, Pat
                 old = list(csv.DictReader(fh))
         fresh = {r["record"] for r in new}
         rows = [r for r in old if r["record"] not in fresh] + new
-        fields = list(new[0]) if new else list(old[0])
+        fields = list(dict.fromkeys([*(new[0] if new else []), *(old[0] if old else [])]))
         with dest.open("w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=fields, lineterminator="\n", extrasaction="ignore")
             w.writeheader()
