@@ -1,7 +1,6 @@
 """The command line's argument types: each turns the text of an option into its value or
 raises :class:`argparse.ArgumentTypeError`, which :mod:`hosid.cli` reports as a one-line
-error with exit code 2.  ``hosid batch`` and ``hosid monitor`` use the same ones (through
-:mod:`hosid.cli`, which keeps their former private names).
+error with exit code 2.  ``hosid batch`` and ``hosid monitor`` use the same ones.
 """
 
 from __future__ import annotations

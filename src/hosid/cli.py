@@ -18,11 +18,7 @@ from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from hosid import __version__, commands
-from hosid.arguments import integer as _integer
-from hosid.arguments import nonnegative as _nonnegative
-from hosid.arguments import number as _number
-from hosid.arguments import positive as _positive
-from hosid.arguments import probability as _probability
+from hosid.arguments import integer, nonnegative, number, positive, probability
 from hosid.errors import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
@@ -78,13 +74,13 @@ def _analysis_options(p: argparse.ArgumentParser) -> None:
     _shape_option(p)
     p.add_argument(
         "--block-seconds",
-        type=_positive,
+        type=positive,
         default=None,
         help="block length in seconds; default about 16 periods of the resonance",
     )
     p.add_argument(
         "--omega-max",
-        type=_positive,
+        type=positive,
         default=None,
         help="upper edge of the J2 band, rad/s; default 6 x the resonance",
     )
@@ -146,23 +142,23 @@ def _add(sub, name: str) -> argparse.ArgumentParser:
 def _add_simulate(sub) -> None:
     sim = _add(sub, "simulate")
     for name, kind, default in (
-        ("a1", _nonnegative, 0.5),
-        ("n1", _nonnegative, 0.5),
-        ("a2", _number, 25.0),
-        ("n2", _nonnegative, 5.0),
-        ("S0", _positive, 100.0),
+        ("a1", nonnegative, 0.5),
+        ("n1", nonnegative, 0.5),
+        ("a2", number, 25.0),
+        ("n2", nonnegative, 5.0),
+        ("S0", positive, 100.0),
     ):
         sim.add_argument(f"--{name}", type=kind, default=default, help=f"default {default:g}")
     for name, kind, text in (
-        ("b2", _number, "quadratic stiffness b2 x^2"),
-        ("mu", _nonnegative, "Coulomb friction mu sign(x')"),
-        ("m", _number, "mean force m"),
-        ("wc", _positive, "corner (rad/s) of a low-pass on the force"),
-        ("wb", _positive, "edge (rad/s) above which the force has no power"),
-        ("rolloff", _nonnegative, "roll-off beta of the band-limited force within its band"),
-        ("wf", _positive, "frequency (rad/s) of a second-order shaping filter on the force"),
-        ("zf", _positive, "damping ratio of that filter (with --wf)"),
-        ("noise_sd", _positive, "sd of white measurement noise on x"),
+        ("b2", number, "quadratic stiffness b2 x^2"),
+        ("mu", nonnegative, "Coulomb friction mu sign(x')"),
+        ("m", number, "mean force m"),
+        ("wc", positive, "corner (rad/s) of a low-pass on the force"),
+        ("wb", positive, "edge (rad/s) above which the force has no power"),
+        ("rolloff", nonnegative, "roll-off beta of the band-limited force within its band"),
+        ("wf", positive, "frequency (rad/s) of a second-order shaping filter on the force"),
+        ("zf", positive, "damping ratio of that filter (with --wf)"),
+        ("noise_sd", positive, "sd of white measurement noise on x"),
     ):
         sim.add_argument(
             f"--{name.replace('_', '-')}", dest=name, type=kind, help=f"{text}; default none"
@@ -170,29 +166,29 @@ def _add_simulate(sub) -> None:
     sim.add_argument(
         "--impulse-rate",
         dest="rate",
-        type=_positive,
+        type=positive,
         help="Poisson impulses a second with Gaussian areas in place of the white force "
         "(the same level S0, not Gaussian); default none",
     )
     sim.add_argument(
         "--change-at",
-        type=_positive,
+        type=positive,
         metavar="T",
         help="seconds from the first sample at which the parameters change to the --*-after "
         "values; default no change",
     )
     sim.add_argument(
         "--ramp",
-        type=_nonnegative,
+        type=nonnegative,
         metavar="R",
         help="seconds over which they move linearly to those values; default 0 (a step)",
     )
     for name, kind in (
-        ("a1", _nonnegative),
-        ("n1", _nonnegative),
-        ("a2", _number),
-        ("n2", _nonnegative),
-        ("S0", _positive),
+        ("a1", nonnegative),
+        ("n1", nonnegative),
+        ("a2", number),
+        ("n2", nonnegative),
+        ("S0", positive),
     ):
         sim.add_argument(
             f"--{name}-after",
@@ -201,9 +197,9 @@ def _add_simulate(sub) -> None:
             metavar="V",
             help=f"{name} after the change (with --change-at); default unchanged",
         )
-    sim.add_argument("--duration", type=_positive, default=2000.0, help="seconds, default 2000")
-    sim.add_argument("--dt", type=_positive, default=0.02, help="seconds, default 0.02")
-    sim.add_argument("--seed", type=_integer(0), default=0, help="default 0")
+    sim.add_argument("--duration", type=positive, default=2000.0, help="seconds, default 2000")
+    sim.add_argument("--dt", type=positive, default=0.02, help="seconds, default 0.02")
+    sim.add_argument("--seed", type=integer(0), default=0, help="default 0")
     sim.add_argument("--out", required=True, help="output file, .csv or .npz")
     sim.set_defaults(func=commands.cmd_simulate)
 
@@ -239,14 +235,14 @@ def _add_fit(sub) -> None:
         action="store_true",
         help="drop the eq-65 constraint a1eq > 0 (shows the twin modes)",
     )
-    fit.add_argument("--walkers", type=_integer(2), default=32, help="default 32")
+    fit.add_argument("--walkers", type=integer(2), default=32, help="default 32")
     fit.add_argument(
         "--steps",
-        type=_integer(1),
+        type=integer(1),
         default=None,
         help="steps per walker; default: until the diagnostics pass",
     )
-    fit.add_argument("--seed", type=_integer(0), default=0, help="default 0")
+    fit.add_argument("--seed", type=integer(0), default=0, help="default 0")
     fit.add_argument("--backend", metavar="FILE.h5", help="store (or resume) the chain")
     fit.add_argument("--no-progress", action="store_true", help="no progress bar")
     fit.add_argument(
@@ -277,24 +273,27 @@ def _add_diagnose(sub) -> None:
     )
     dia.add_argument(
         "--replicates",
-        type=_integer(4),
+        type=integer(4),
         default=DEFAULT_REPLICATES,
         help=f"default {DEFAULT_REPLICATES}",
     )
     dia.add_argument(
         "--alpha",
-        type=_probability,
+        type=probability,
         default=0.05,
         help="false-alarm rate of each round (any candidate); default 0.05",
     )
     dia.add_argument(
         "--threshold",
-        type=_positive,
+        type=positive,
         default=3.0,
         help="robust z of the base gap for significance (reported); default 3",
     )
     dia.add_argument(
-        "--max-effects", type=_integer(0), default=None, help="name at most this many effects"
+        "--max-effects",
+        type=integer(0),
+        default=None,
+        help="name at most this many effects",
     )
     dia.add_argument(
         "--posterior",
@@ -302,7 +301,7 @@ def _add_diagnose(sub) -> None:
         default="emcee",
         help="how the base and named models are fitted for their gaps; default emcee",
     )
-    dia.add_argument("--seed", type=_integer(0), default=0, help="default 0")
+    dia.add_argument("--seed", type=integer(0), default=0, help="default 0")
     _record_options(dia)
     dia.add_argument("--no-progress", action="store_true", help="no progress bar")
     dia.add_argument("--out", required=True, metavar="DIR", help="output directory")
@@ -318,7 +317,7 @@ def _add_report(sub) -> None:
 def _add_demo(sub) -> None:
     demo = _add(sub, "demo")
     demo.add_argument("--out", default="demo-out", help="output directory, default demo-out")
-    demo.add_argument("--seed", type=_integer(0), default=2026, help="default 2026")
+    demo.add_argument("--seed", type=integer(0), default=2026, help="default 2026")
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
     demo.set_defaults(func=commands.cmd_demo)
 

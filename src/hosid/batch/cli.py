@@ -18,6 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from .. import arguments
 from ..check.diagnose import DEFAULT_REPLICATES
 from ..errors import HosidInputError
 from .tasks import ANALYSES
@@ -28,9 +29,9 @@ _ALL = ANALYSES
 _SPECTRAL = ("fit", "estimate")
 
 
-def _flags(base) -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
+def _flags() -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
     """Analysis options: flag, option name, the analyses it applies to, argparse kwargs."""
-    n = base._integer
+    n = arguments.integer
     return (
         (
             "--model",
@@ -69,8 +70,13 @@ def _flags(base) -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
             ("fit",),
             {"type": n(1), "metavar": "N", "help": "per walker; default: until converged"},
         ),
-        ("--block-seconds", "block_seconds", _SPECTRAL, {"type": base._positive, "metavar": "S"}),
-        ("--omega-max", "omega_max", _SPECTRAL, {"type": base._positive, "metavar": "W"}),
+        (
+            "--block-seconds",
+            "block_seconds",
+            _SPECTRAL,
+            {"type": arguments.positive, "metavar": "S"},
+        ),
+        ("--omega-max", "omega_max", _SPECTRAL, {"type": arguments.positive, "metavar": "W"}),
         ("--form", "form", _SPECTRAL, {"choices": ("scaled", "printed")}),
         ("--domain", "domain", _SPECTRAL, {"choices": ("principal", "reduced", "full")}),
         (
@@ -89,13 +95,21 @@ def _flags(base) -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
             "--threshold",
             "threshold",
             ("diagnose",),
-            {"type": base._positive, "metavar": "Z", "help": "base gap significance, default 3"},
+            {
+                "type": arguments.positive,
+                "metavar": "Z",
+                "help": "base gap significance, default 3",
+            },
         ),
         (
             "--alpha",
             "alpha",
             ("diagnose",),
-            {"type": base._positive, "metavar": "P", "help": "false alarms a round, default 0.05"},
+            {
+                "type": arguments.positive,
+                "metavar": "P",
+                "help": "false alarms a round, default 0.05",
+            },
         ),
         (
             "--max-effects",
@@ -122,30 +136,28 @@ def _names(text: str) -> list[str]:
     return [c.strip() for c in text.split(",") if c.strip()]
 
 
-def cluster_options(p: argparse.ArgumentParser, base) -> None:
+def cluster_options(p: argparse.ArgumentParser) -> None:
     """``--workers`` or ``--scheduler``, ``--seed`` and ``--no-progress``: the options of
     every command that runs on dask (``hosid batch``, ``hosid monitor``).
     """
     where = p.add_mutually_exclusive_group()
     where.add_argument(
-        "--workers", type=base._integer(1), help="local worker processes; default one per core"
+        "--workers", type=arguments.integer(1), help="local worker processes; default one per core"
     )
     where.add_argument("--scheduler", metavar="ADDRESS", help="an existing dask scheduler")
-    p.add_argument("--seed", type=base._integer(0), default=0, help="root seed, default 0")
+    p.add_argument("--seed", type=arguments.integer(0), default=0, help="root seed, default 0")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _batch_options(p: argparse.ArgumentParser, base) -> None:
+def _batch_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="the batch's folder")
-    cluster_options(p, base)
+    cluster_options(p)
     p.add_argument("--save-posterior", action="store_true", help="keep each posterior.nc")
     p.add_argument("--retry-errors", action="store_true", help="rerun tasks that failed")
 
 
 def add_batch_parser(sub) -> None:
     """Add ``hosid batch`` and its four sub-commands to the sub-parsers ``sub``."""
-    from .. import cli as base  # the shared argument types
-
     batch = sub.add_parser(
         "batch",
         allow_abbrev=False,
@@ -157,7 +169,7 @@ def add_batch_parser(sub) -> None:
         ),
     )
     commands = batch.add_subparsers(dest="batch_command", metavar="ANALYSIS")
-    flags = _flags(base)
+    flags = _flags()
     for name in (*ANALYSES, "simulate-study"):
         study = name == "simulate-study"
         p = commands.add_parser(
@@ -174,16 +186,15 @@ def add_batch_parser(sub) -> None:
         for flag, dest, where, kwargs in flags:
             if study or name in where:
                 p.add_argument(flag, dest=dest, default=argparse.SUPPRESS, **kwargs)
-        _batch_options(p, base)
+        _batch_options(p)
     batch.set_defaults(func=cmd_batch)
 
 
 def _options(args: argparse.Namespace, analysis: str) -> dict:
-    from .. import cli as base
     from .tasks import options_for
 
     given = {}
-    for flag, dest, where, _ in _flags(base):
+    for flag, dest, where, _ in _flags():
         if dest in vars(args):
             if analysis not in where:
                 raise HosidInputError(f"{flag} does not apply to --analysis {analysis}")

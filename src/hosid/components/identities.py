@@ -215,11 +215,21 @@ class Identities:
             p = spectrum.operator(th)
             return np.stack([p[m] * p[n] for m, n in pairs], axis=-1)
 
+        # the block values are linear in the coefficients (p_m p_n, p_m p_n theta_k, -pi S0):
+        # one matrix of the statistics, so that a batch of thetas is one product
+        n_b, n_j = e.shape
+        X = np.concatenate(
+            [C.reshape(len(pairs), -1), np.moveaxis(Q, -1, 1).reshape(-1, n_b * n_j),
+             e.reshape(1, -1)]
+        )  # fmt: skip
+
         def blocks(th):  # (..., B, J)
             W = weights(th)
-            out = np.einsum("...q,qbj->...bj", W, C)
-            out = out + np.einsum("...q,qbjk,...k->...bj", W, Q, th[..., :nd])
-            return out - (np.pi * spectrum.S0(th))[..., None, None] * e
+            coef = np.concatenate(
+                [W, (W[..., :, None] * th[..., None, :nd]).reshape(*W.shape[:-1], -1),
+                 -np.pi * np.asarray(spectrum.S0(th))[..., None]], axis=-1,
+            )  # fmt: skip
+            return (coef @ X).reshape(*coef.shape[:-1], n_b, n_j)
 
         def factor(values):  # Cholesky factor of the block covariance, (..., J, J)
             u = values - values.mean(axis=-2, keepdims=True)
@@ -240,6 +250,7 @@ class Identities:
             except np.linalg.LinAlgError:
                 return np.full(m.shape, np.nan)
             return (L0 @ z)[..., 0]
+
         labels = tuple(
             f"identity {j if isinstance(j, str) else model.drift_terms[j].params[0]}" for j in rows
         )

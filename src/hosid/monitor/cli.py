@@ -16,6 +16,7 @@ import argparse
 import signal
 from pathlib import Path
 
+from .. import arguments
 from ..errors import HosidInputError
 
 __all__ = ["add_monitor_parser", "cmd_monitor"]
@@ -25,7 +26,6 @@ _SKIP = ("--block-seconds", "--excitation-shape")
 
 def add_monitor_parser(sub) -> None:
     """Add ``hosid monitor`` to the sub-parsers ``sub``."""
-    from .. import cli as base
     from ..batch.cli import _flags, cluster_options
 
     p = sub.add_parser(
@@ -40,38 +40,38 @@ def add_monitor_parser(sub) -> None:
     )
     p.add_argument("record", metavar="RECORD", help=".csv or .npz record, or a folder of them")
     p.add_argument("--out", required=True, metavar="DIR", help="the monitor's folder")
-    p.add_argument("--window", type=base._positive, metavar="S", help="window length (s)")
-    p.add_argument("--step", type=base._positive, metavar="S", help="default: the window")
+    p.add_argument("--window", type=arguments.positive, metavar="S", help="window length (s)")
+    p.add_argument("--step", type=arguments.positive, metavar="S", help="default: the window")
     p.add_argument(
-        "--block-seconds", type=base._positive, metavar="S", help="default: from the record"
+        "--block-seconds", type=arguments.positive, metavar="S", help="default: from the record"
     )
     p.add_argument(
         "--analysis", choices=("fit", "estimate"), default="fit", help="per window; default fit"
     )
-    for flag, dest, where, kwargs in _flags(base):
+    for flag, dest, where, kwargs in _flags():
         if "fit" in where and flag not in _SKIP:
             p.add_argument(flag, dest=dest, default=argparse.SUPPRESS, **kwargs)
     p.add_argument(
         "--alpha",
-        type=base._probability,
+        type=arguments.probability,
         default=0.05,
         help="chance of naming a change in a stationary record; default 0.05",
     )
     p.add_argument(
-        "--level", type=base._probability, default=0.95, help="of the intervals; default 0.95"
+        "--level", type=arguments.probability, default=0.95, help="of the intervals; default 0.95"
     )
     ref = p.add_mutually_exclusive_group()
     ref.add_argument("--baseline", metavar="SUMMARY.json", help="a reference fit's summary")
     ref.add_argument(
         "--baseline-windows",
-        type=base._integer(1),
+        type=arguments.integer(1),
         default=0,
         metavar="K",
         help="the first K windows are the reference",
     )
     p.add_argument("--follow", action="store_true", help="keep reading a growing .csv file")
-    p.add_argument("--poll", type=base._positive, default=2.0, metavar="S", help="default 2 s")
-    cluster_options(p, base)
+    p.add_argument("--poll", type=arguments.positive, default=2.0, metavar="S", help="default 2 s")
+    cluster_options(p)
     p.set_defaults(func=cmd_monitor)
 
 
