@@ -126,7 +126,7 @@ def point_estimates(
             spec, comps = _components(name, omega_max)
             model = Model.from_spec(spec)
             try:
-                values = hosid.estimate(state, model, comps, band_limit=False).values
+                values = hosid.estimate(state, model, comps, settle=False).values
             except HosidInputError:
                 values = None
             if values is not None and spec == LINEAR_DAMPING:

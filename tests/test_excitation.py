@@ -176,5 +176,5 @@ def test_estimate_adds_the_band_limited_excitation(band_record):
         assert abs(v[p] - t) < 3 * sd[p], p
     assert est.state.scales.band_edge[0] <= v["wb"] <= est.state.scales.band_edge[1]
     assert v["rolloff"] < 3 * sd["rolloff"]  # a flat band
-    plain = estimate(band_record, "paper", band_limit=False)
+    plain = estimate(band_record, "paper", settle=False)
     assert plain.model.names == Model.from_spec("paper").names

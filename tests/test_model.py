@@ -200,6 +200,20 @@ def test_paper_and_linear_layouts():
     assert lin.param_names == ("a1", "a2", "S0")
 
 
+def test_a_shaping_filter_candidate_replaces_a_band_edge():
+    """A band-limited model keeps the shaping filter among its candidates, and the
+    extended model swaps the edge for the filter; other candidates are added.
+    """
+    band = Model.from_spec("paper,band_limited_excitation")
+    assert "narrowband_excitation" in band.candidates
+    assert "narrowband_excitation" not in band.with_term("coloured_excitation").candidates
+    ext = band.extended("narrowband_excitation")
+    assert ext.names == Model.from_spec("paper,narrowband_excitation").names
+    assert band.extended("coulomb_friction") == band.with_term("coulomb_friction")
+    with pytest.raises(HosidInputError, match="coloured_excitation is not a candidate"):
+        band.extended("coloured_excitation")
+
+
 def test_spec_strings_lists_aliases_and_canonical_order():
     a = Model.from_spec("measurement_noise, linear_stiffness,linear_damping")
     b = Model.from_spec(["linear_damping", "linear_stiffness", "measurement_noise"])
@@ -255,6 +269,10 @@ def test_with_term_returns_a_new_model_and_rejects_duplicates():
     with pytest.raises(HosidInputError, match="valid terms: linear_damping") as err:
         lin.with_term("stiction")
     assert "\n" not in str(err.value)
+    nb = Model.from_spec("paper,narrowband_excitation")
+    assert nb.without_term("narrowband_excitation").names == Model.from_spec("paper").names
+    with pytest.raises(HosidInputError, match="model has no coulomb_friction"):
+        lin.without_term("coulomb_friction")
 
 
 def test_params_and_vector():

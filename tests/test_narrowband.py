@@ -13,6 +13,7 @@ from hosid.components.identities import Identities
 from hosid.components.jets import time_derivatives
 from hosid.errors import HosidInputError
 from hosid.inference.estimate import estimate, prepare_state
+from hosid.inference.settle import WHITE_P
 from hosid.inference.solutions import select_solution
 from hosid.model import Model
 from hosid.model.excitation import Spectrum, squared_modulus
@@ -249,3 +250,70 @@ def test_diagnose_weighs_a_narrowband_force_against_the_white_model():
     assert ev.z > 10 and ev.p_value < 1e-6 and ev.coordinate.df == 2
     assert ev.estimate["wf"] == pytest.approx(7.0, rel=0.05)
     assert ev.estimate["zf"] == pytest.approx(0.2, rel=0.2)
+
+
+def test_a_filter_the_record_does_not_show_is_settled_white(paper_record):
+    """A white record fitted with a shaping filter: the test of the white force it nests
+    does not reject, and the white model is estimated with its own equations (the same
+    estimate as asking for the white model); a filtered record keeps its filter.
+    """
+    est = estimate(paper_record, NB)
+    white = estimate(paper_record, "paper")
+    assert est.model.names == white.model.names
+    np.testing.assert_allclose(est.theta, white.theta, rtol=1e-12)
+    test = est.excitation_test
+    assert test["effect"] == "narrowband_excitation" and test["reference"] == "chi2(2)"
+    assert test["p_value"] >= WHITE_P and "the white model is fitted" in est.notes[-1]
+    assert white.excitation_test is None
+    truth = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
+    rec = simulate(truth, duration=1000.0, dt=0.02, rng=np.random.default_rng(5))
+    kept = estimate(rec, NB)
+    assert kept.model.has("wf") and kept.excitation_test["p_value"] < 1e-10
+    assert any("rejects a white force" in n for n in kept.notes)
+    unsettled = estimate(rec, NB, settle=False)
+    assert unsettled.excitation_test is None
+    np.testing.assert_allclose(unsettled.theta, kept.theta, rtol=1e-12)
+
+
+def test_the_white_limit_is_the_restricted_minimum_of_the_filter_s_own_J():
+    """white_limit's D on a filtered record: J held at the white boundary (wf -> inf) and
+    minimised over the other parameters, minus J at the estimate; the restricted minimum
+    is one (no coordinate step of 1e-3 of its size lowers J) and lies below J at the
+    estimate moved to the boundary unrefitted.  A model without a filter has nothing to
+    test.
+    """
+    from hosid.inference.estimate import log_params, typical_scale
+    from hosid.inference.settle import white_limit
+
+    truth = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
+    rec = simulate(truth, duration=500.0, dt=0.02, rng=np.random.default_rng(8))
+    est = estimate(rec, NB, settle=False)
+    model, ql, theta = est.model, est.ql, est.theta
+    scale = typical_scale(model, est.state, theta)
+    test = white_limit(model, ql, theta, log_params=log_params(model), scale=scale)
+    J = float(-2.0 * ql(theta))
+    J0 = J + test["D"]
+    assert test["D"] > 0 and test["p_value"] == pytest.approx(math.exp(-test["D"] / 2.0))
+    naive = theta.copy()
+    naive[model.index("wf")] = 1e7
+    assert J0 < float(-2.0 * ql(naive))
+    # the restricted solution: recover it by refitting from the naive point
+    from hosid.inference.gmm import Transformed, solve
+
+    free = [k for k in range(theta.size) if model.param_names[k] not in ("wf", "zf")]
+
+    def fixed(v):
+        out = np.broadcast_to(naive, (*np.shape(v)[:-1], naive.size)).copy()
+        out[..., free] = v
+        return out
+
+    q0 = Transformed.of(ql, fixed)
+    v = solve(q0, naive[free], log_params=[free.index(4)], scale=0.1 * scale[free])
+    assert float(-2.0 * q0(v)) == pytest.approx(J0, rel=1e-6)
+    for k in range(v.size):
+        for sign in (-1.0, 1.0):
+            step = v.copy()
+            step[k] *= 1.0 + sign * 1e-3
+            assert float(-2.0 * q0(step)) >= J0 - 1e-6 * J0
+    with pytest.raises(ValueError, match="narrowband_excitation"):
+        white_limit(Model.from_spec("paper"), ql, theta[:5], log_params=[], scale=scale[:5])

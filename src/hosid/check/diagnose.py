@@ -324,7 +324,7 @@ def diagnose(
                 for c in cands if candidate_gaps else ():
                     stage(f"gap + {c} (screen)")
                     try:
-                        gaps_of[c] = check(current.model.with_term(c), cand_ss, "screen", False)
+                        gaps_of[c] = check(current.model.extended(c), cand_ss, "screen", False)
                     except HosidInputError as exc:
                         failed.setdefault(c, str(exc))
                     bar.update()
@@ -332,7 +332,7 @@ def diagnose(
             for c in rnd.supported():
                 stage(f"fit + {c} ({posterior})", grow=1)
                 try:
-                    new = check(current.model.with_term(c), path_ss, posterior)
+                    new = check(current.model.extended(c), path_ss, posterior)
                     why = _veto(current, new)
                 except HosidInputError as exc:
                     why = f"fitting it failed ({exc})"

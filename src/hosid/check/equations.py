@@ -12,11 +12,11 @@ from ..components.base import Component
 from ..components.cumulant import ForceKurtosis
 from ..components.tail import TAIL_PARAMS, Tail
 from ..inference.estimate import components_for, prepare_state
+from ..model.coordinates import COORDINATES, Coordinate
 from ..model.excitation import Spectrum
 from ..model.model import Model
 from ..record import Record
 from ..state import RecordState
-from .coordinates import COORDINATES, Coordinate
 
 __all__ = ["components_for_test", "null_moments", "null_theta", "record_state"]
 
@@ -28,7 +28,7 @@ def components_for_test(model: Model, effect: str) -> list[Component]:
     measurement noise, as the default fit of that model has.
     """
     comps = components_for()
-    ext = model.with_term(effect)
+    ext = model.extended(effect)
     if any(ext.has(p) for p in TAIL_PARAMS):
         comps.append(Tail())
     has_kurtosis = any(isinstance(c, ForceKurtosis) for c in comps)
@@ -58,7 +58,7 @@ def null_moments(
     prepared on ``record`` at ``start`` with the effect at its null: the first
     preparation of :func:`weigh`.
     """
-    ext = model.with_term(effect)
+    ext = model.extended(effect)
     theta = null_theta(ext, COORDINATES[effect], start)
     state = record_state(record, ext, states)
     return [c.prepare(state, ext, theta) for c in components_for_test(model, effect)]

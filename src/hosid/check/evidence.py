@@ -84,10 +84,10 @@ from ..errors import HosidInputError
 from ..inference.calibrate import HANSEN_P
 from ..inference.estimate import estimate, log_params, typical_scale
 from ..inference.gmm import BlockCovariance, Transformed, j_difference, quasi_likelihood, solve
+from ..model.coordinates import COORDINATES, WHITE_CORNER, Coordinate, critical_z, param_sd
 from ..model.excitation import Spectrum
 from ..model.model import Model, get_term
 from ..record import Record
-from .coordinates import COORDINATES, WHITE_CORNER, Coordinate, critical_z, param_sd
 from .equations import components_for_test, null_moments, null_theta, record_state
 
 __all__ = [  # the coordinates are re-exported: the evidence is where users look for them
@@ -203,7 +203,7 @@ def weigh(
     if effect not in COORDINATES:
         raise HosidInputError(f"{effect} is not a candidate effect")
     coord = COORDINATES[effect]
-    ext = model.with_term(effect)
+    ext = model.extended(effect)
     state = record_state(record, ext, states)
     comps = components_for_test(model, effect)
     names = ext.param_names
@@ -252,7 +252,7 @@ def weigh(
             u[i] = support[coord.param].upper ** -2.0
         if Spectrum(ext).whitening or ext.has("rate"):  # the fit's estimate (multi-start
             # for a filter's peak; the rate piloted by the force's kurtosis)
-            found = estimate(state, ext, comps, simulations=0)
+            found = estimate(state, ext, comps, settle=False, simulations=0)
             u, ql, rounds = found.theta.copy(), found.ql, 0
             u[i] = coord.to_u(found.theta[i])
             qlu = Transformed.of(ql, to_theta)

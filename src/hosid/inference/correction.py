@@ -123,7 +123,7 @@ def unbiased(state, model, components, theta, ql, n, progress):
         return prepare_state(rec, model, block_seconds=state.layout.T)
 
     def estimator(st):
-        return estimate(st, model, components, band_limit=False, simulations=0).theta
+        return estimate(st, model, components, settle=False, simulations=0).theta
 
     rng = np.random.default_rng(seed)
     label, total = "sampling-bias correction", DEFAULT_ITERATIONS * n

@@ -12,11 +12,16 @@ r"""Record -> state -> components -> calibrated quasi-likelihood and its mode.
 :mod:`hosid.inference.calibrate` and emcee (:mod:`hosid.inference.sampler`), and
 returns an arviz ``DataTree`` (:mod:`hosid.output.results`).
 
-The excitation follows the record (:func:`excitation_for`): when the record's
-acceleration spectrum shows that the excitation stops below the Nyquist frequency
-(:mod:`hosid.spectra.response`), the model gets ``band_limited_excitation`` (the edge
-:math:`\omega_b` and a roll-off :math:`\beta` of the force within its band), unless
-``band_limit=False``; the estimate's ``notes`` say so.
+The excitation is settled against the record, unless ``settle=False``; the estimate's
+``notes`` say what was found and done:
+
+- when the record's acceleration spectrum shows that the excitation stops below the
+  Nyquist frequency (:mod:`hosid.spectra.response`), the model gets
+  ``band_limited_excitation`` (the edge :math:`\omega_b` and a roll-off :math:`\beta` of
+  the force within its band; :func:`excitation_for`);
+- a shaping filter asked for (``narrowband_excitation``) is kept only when the record
+  rejects the white force it nests; otherwise the white model is estimated
+  (:mod:`hosid.inference.settle`).
 
 Component sets (``cost``; the restoring identities are the paper's moment method, J4
 gives equations along the damping and :math:`S_0` only):
@@ -60,6 +65,7 @@ from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, unbiased
 from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
+from .settle import WHITE_P, settled_term, white_limit
 from .solutions import alternatives, select_solution
 
 __all__ = [
@@ -181,6 +187,9 @@ class Estimate:
     #: quasi-likelihood does not rule out (a filter and its oscillator swapped): the
     #: sampler starts walkers there too
     alternatives: list[np.ndarray] = field(default_factory=list)
+    #: the test of the white force nested in a shaping filter asked for
+    #: (:func:`hosid.inference.settle.white_limit`), or ``None``
+    excitation_test: dict | None = None
 
     @property
     def values(self) -> dict[str, float]:
@@ -220,7 +229,7 @@ def estimate(
     start: np.ndarray | None = None,
     rounds: int = 2,
     block_seconds: float | None = None,
-    band_limit: bool = True,
+    settle: bool = True,
     force: bool = False,
     unit: str = "m",
     checks: Sequence[Check] | None = None,
@@ -228,9 +237,9 @@ def estimate(
     progress: bool | Stages = False,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` and its mode (module docstring),
-    searched within the default priors' supports; with ``band_limit`` the model gets
-    ``band_limited_excitation`` when the record's excitation stops below the Nyquist
-    frequency.
+    searched within the default priors' supports; with ``settle`` the excitation is
+    settled against the record (module docstring: a band's edge added, a shaping filter
+    the record does not show dropped).
 
     A :class:`~hosid.record.Record` is checked first (:func:`hosid.screen.check_record`);
     ``force`` estimates a record that fails a check anyway, ``unit`` names the
@@ -258,7 +267,9 @@ def estimate(
         if isinstance(record, RecordState)
         else prepare_state(record, model, block_seconds=block_seconds)
     )
-    model, notes = excitation_for(state, model, band_limit=band_limit and start is None)
+    settle = settle and start is None
+    model, notes = excitation_for(state, model, band_limit=settle)
+    asked = components
     components = list(components or components_for())
     if any(model.has(p) for p in TAIL_PARAMS) and not any(isinstance(c, Tail) for c in components):
         components.append(Tail())  # the corner and the noise floor show in the tail
@@ -288,6 +299,21 @@ def estimate(
         raise failure
     df = hansen(found[0][1], found[0][0])["df"]
     theta, ql, theta0 = found[select_solution([(t, q) for t, q, _ in found], df)]
+    test = None
+    if settle and settled_term(model):
+        test = white_limit(model, ql, theta, log_params=logs,
+                           scale=typical_scale(model, state, theta))  # fmt: skip
+        if test["p_value"] >= WHITE_P:
+            white = model.without_term(test["effect"])
+            est = estimate(
+                record, white, asked, block_seconds=block_seconds, settle=False,
+                force=force, unit=unit, checks=checks, simulations=simulations,
+                progress=progress,
+            )  # fmt: skip
+            est.notes.append(_settled_note(test, kept=False))
+            est.excitation_test = test
+            return est
+        notes.append(_settled_note(test, kept=True))
     J_best = float(-2.0 * ql(theta))
     solutions = [t for t, _, _ in found]
     # the impulses' sampling bias (.correction), where single impulses show: fewer than
@@ -310,7 +336,19 @@ def estimate(
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
     others = alternatives(ql, theta, solutions, cov, J_best)
     return Estimate(
-        model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others
+        model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others,
+        test,
+    )  # fmt: skip
+
+
+def _settled_note(test: dict, *, kept: bool) -> str:
+    """What :mod:`hosid.inference.settle` found, in a sentence."""
+    found = f"D = {test['D']:.3g} on {test['reference']}, p = {test['p_value']:.2g}"
+    if kept:
+        return f"{test['effect']}: the record rejects a white force ({found})"
+    return (
+        f"{test['effect']} asked for, but the record does not reject a white force ({found} "
+        f">= {WHITE_P:g}): the white model is fitted (hosid.inference.settle)"
     )
 
 

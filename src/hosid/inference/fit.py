@@ -253,6 +253,7 @@ def fit(
         "unit": unit,
         "state": est.state.describe(),
         "record_notes": est.notes,
+        "excitation_test": est.excitation_test,
         "estimate": est.values,
         "pilot": model.params(est.pilot),
         "calibration": cal.describe(),

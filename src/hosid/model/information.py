@@ -243,7 +243,7 @@ def candidate_bound(
             effects=(effect,),
         )  # fmt: skip
         return bound.sd[SPECTRAL[effect]]
-    ext = base.with_term(effect)
+    ext = base.extended(effect)
     param = ext.terms[[t.name for t in ext.terms].index(effect)].params[0]
     crb = cramer_rao(
         ext, {**values, param: 0.0}, duration=duration, dt=dt, rng=rng, sim_duration=sim_duration

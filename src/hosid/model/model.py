@@ -129,6 +129,39 @@ class Model:
             raise HosidInputError(f"model already has {term.name}: {', '.join(self.names)}")
         return Model((*self.terms, term))
 
+    def extended(self, effect: str) -> Model:
+        """The model with the candidate ``effect`` (one of :attr:`candidates`): the term
+        added, except that a shaping filter replaces a band-limited excitation.  The
+        record's band edge (:mod:`hosid.spectra.response`) may be the end of a nonlinear
+        response's harmonic under a narrow-band force (a hardening oscillator's third
+        harmonic), and the filter's roll-off is its own.
+
+        Raises
+        ------
+        HosidInputError
+            If ``effect`` is not a candidate of the model.
+        """
+        name = get_term(effect).name
+        if name not in self.candidates:
+            raise HosidInputError(f"{name} is not a candidate of {', '.join(self.names)}")
+        base = self
+        if name == "narrowband_excitation" and self.has("band_limited_excitation"):
+            base = self.without_term("band_limited_excitation")
+        return base.with_term(name)
+
+    def without_term(self, name: str) -> Model:
+        """A copy without the term ``name``.
+
+        Raises
+        ------
+        HosidInputError
+            If the model has no term ``name``.
+        """
+        name = get_term(name).name
+        if name not in self.names:
+            raise HosidInputError(f"model has no {name}: {', '.join(self.names)}")
+        return Model(tuple(t for t in self.terms if t.name != name))
+
     # ------------------------------------------------------------- structure
     @property
     def names(self) -> tuple[str, ...]:
@@ -162,12 +195,13 @@ class Model:
     def candidates(self) -> tuple[str, ...]:
         """Candidate effects not yet in the model (a band-limited excitation's roll-off
         and a shaping filter already hold a coloured excitation's low-pass; a whitening
-        filter is not combined with another shape).
+        filter is not combined with another shape, but replaces a band's edge:
+        :meth:`extended`).
         """
         taken = set(self.names)
         if self.has("wb") or self.has("wf"):  # a band's roll-off, a filter: a low-pass
             taken.add("coloured_excitation")
-        if any(self.has(p) for p in ("wb", "wc")):  # one whitening shape alone
+        if self.has("wc"):  # one whitening shape alone (a filter replaces a band: extended)
             taken.add("narrowband_excitation")
         if self.has("measured_excitation"):  # the shape is known
             taken.update(("coloured_excitation", "narrowband_excitation"))

@@ -310,6 +310,7 @@ def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
         "checks": checks,
         "verdict": overall(Check.from_dict(c) for c in checks),
         "record_notes": attr(tree, "record_notes") or [],
+        "excitation_test": attr(tree, "excitation_test"),
         "forced": bool(attr(tree, "forced", 0)),
         "fit_seconds": attr(tree, "fit_seconds"),
         "calibration": attr(tree, "calibration"),

@@ -1,6 +1,8 @@
-r"""How the evidence of :mod:`hosid.check.evidence` sees a candidate's parameter: its
-regular coordinate :math:`u`, null :math:`u = 0` (that module's docstring), and the
-Wald threshold of a test at a level.
+r"""How a test sees a term's parameter: its regular coordinate :math:`u`, null
+:math:`u = 0` (the effect absent, or the force white and Gaussian), and the Wald
+threshold of a test at a level.  The evidence of a candidate effect
+(:mod:`hosid.check.evidence`) and the white limit of an excitation term asked for
+(:mod:`hosid.inference.settle`) both test there.
 """
 
 from __future__ import annotations
