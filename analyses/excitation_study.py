@@ -214,12 +214,14 @@ def write(rows: list[dict], out: Path, title: str | None = None, shaped=None) ->
     return path
 
 
-def arguments(argv, doc: str, cases, work: Path, results: Path) -> argparse.Namespace:
+def arguments(
+    argv, doc: str, cases, work: Path, results: Path, models=MODELS
+) -> argparse.Namespace:
     """The command line of a study of the excitation (this one's and ``impulse_study``'s)."""
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=list(cases), choices=list(cases))
     ap.add_argument("--records", type=int, default=10)
-    ap.add_argument("--models", nargs="+", default=list(MODELS), choices=list(MODELS))
+    ap.add_argument("--models", nargs="+", default=list(models), choices=list(models))
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--n-steps", type=int, default=None, help="fixed emcee steps per fit")
     ap.add_argument("--summary", action="store_true", help="only write the summary")

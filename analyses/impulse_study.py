@@ -71,13 +71,14 @@ def write_design(cases: Sequence[str], path: Path, records: int) -> Path:
 
 def main(argv: Sequence[str] | None = None) -> Path:
     """Run the study (unless ``--summary``) and write its summary."""
-    args = arguments(argv, __doc__, CASES, WORK, RESULTS)
+    args = arguments(argv, __doc__, CASES, WORK, RESULTS, models=MODELS)
     # the impulsive model's fits before the sampling-bias correction (commit 7f97d23),
     # kept beside the corrected ones; not re-run
     tables = {m: args.work / m / "results.csv" for m in (*MODELS, "impulsive_uncorrected")}
     if not args.summary:
         design = write_design(args.cases, args.work / "design.csv", args.records)
-        for label, spec in MODELS.items():
+        for label in args.models:
+            spec = MODELS[label]
             tasks = design_tasks(
                 read_design(design), analysis="fit", seed=SEED, folder=design.parent,
                 options={"model": spec, "n_steps": args.n_steps},
@@ -88,6 +89,10 @@ def main(argv: Sequence[str] | None = None) -> Path:
             )  # fmt: skip
             tables[label] = res.tables[0]
     tables = keep_tables(tables, args.work, args.out)
+    for m in (*MODELS, "impulsive_uncorrected"):  # a model not rerun keeps its kept rows
+        if m not in tables and (args.out / f"{m}.csv").is_file():
+            tables[m] = args.out / f"{m}.csv"
+    tables = {m: tables[m] for m in (*MODELS, "impulsive_uncorrected") if m in tables}
     bound = {name: WHITE_BOUND[CASES[name][0]] for name in CASES}
     title = (
         "# Poisson impulses: bias and coverage (issue 29)\n\n"

@@ -1,0 +1,343 @@
+r"""Simulation of a system of :mod:`hosid.model.system`, and its multi-channel records.
+
+The equations :math:`M\ddot q + \Phi(q, \dot q)\theta = F` are integrated by the
+stochastic Heun method of :mod:`hosid.model.simulate` (weak order 2 for additive noise)
+on ``substeps`` sub-steps of :math:`h = \Delta t/\mathrm{substeps}` per sample, with the
+same two normals a sub-step and driven dof :math:`d`: the velocity increment
+:math:`\Delta W_d/m_d`, :math:`\Delta W_d \sim N(0, 2\pi S_{0,d}h)`, and the
+displacement's share of the force beyond Heun's :math:`h\Delta W_d/2`, an independent
+normal of variance :math:`2\pi S_{0,d}h^3/12` over :math:`m_d^2` (without it the sampled
+spectrum's top falls as if the force were low-passed).  The forces are independent
+across dofs; undriven dofs get none.  The run starts at rest, and the samples start
+after a burn-in (default 30 decay times of the slowest linear mode, at least 60 s).
+The normals are drawn from the given generator in chunks of :data:`CHUNK` samples
+(increments, then displacement shares, per chunk), so memory stays small on long runs.
+
+**What an acceleration channel holds.**  Under a white force the acceleration
+:math:`\ddot q = M^{-1}(F - \Phi\theta)` has no finite value at an instant (its white
+part has infinite variance); a sensor sees it through a low-pass filter.  A channel
+declared ``acceleration`` holds the average acceleration over the sample interval
+centred on :math:`t_n`,
+
+.. math:: \bar a_n = \frac{\dot q(t_n + \Delta t/2) - \dot q(t_n - \Delta t/2)}{\Delta t}
+    = \frac{1}{\Delta t}\int_{t_n - \Delta t/2}^{t_n + \Delta t/2}
+    M^{-1}(F - \Phi\theta)\,dt,
+
+the model's exact acceleration through a boxcar (integrate-and-dump) filter, computed
+from the simulated velocities (so ``substeps`` is even).  It is the closest of the simple
+definitions to an accelerometer behind an ideal anti-alias filter: the force's white part
+sampled so has exactly the white spectrum :math:`S_{0,d}/m_d^2` up to the Nyquist
+frequency with nothing aliased beyond (the increments of a Brownian motion are
+independent; equivalently :math:`\sum_k\mathrm{sinc}^2(\omega\Delta t/2 + k\pi) = 1`),
+which is what an ideal filter passes; the smooth drift part, far below the Nyquist
+frequency, is passed with the gain :math:`\mathrm{sinc}^2(\omega\Delta t/2)` (0.996 at a
+tenth of the Nyquist frequency).  The second difference of the sampled displacement
+would give the white part the spectrum :math:`(2 + \cos\omega\Delta t)/3` (a triangle
+filter, a third of the level at the Nyquist frequency), and the drift acceleration alone
+would drop the white part that dominates an accelerometer's high frequencies.  Its
+covariance for a linear system: :math:`\mathrm{Cov}\,\bar a =
+(2P_{vv} - R_{vv}(\Delta t) - R_{vv}(\Delta t)^{\mathsf T})/\Delta t^2`, with
+:math:`R(\tau) = e^{A\tau}P` (:mod:`hosid.model.linear_chain`).
+
+Records: :class:`ChainRecord` (one column a dof), written by :func:`write_chain_record`
+to CSV (header ``t,x1,x2,...``) or ``.npz`` (one array a dof, ``dt``, ``dofs``,
+``measured``); a single dof named ``x`` gives today's single-channel files.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from ..errors import HosidInputError
+from ..screen import THRESHOLDS
+from .linear_chain import modes, state_matrices
+from .system import GROUND, MEASURED_KINDS, System
+from .system_file import check_measured
+
+__all__ = ["CHUNK", "CODES", "ChainRecord", "simulate_chain", "write_chain_record"]
+
+#: Samples simulated per call of the compiled kernel (the normals are drawn per chunk).
+CHUNK = 2048
+#: The drift terms the compiled kernel knows, by its code.
+CODES = {
+    "linear_damping": 0,
+    "quadratic_damping": 1,
+    "linear_stiffness": 2,
+    "cubic_stiffness": 3,
+    "quadratic_stiffness": 4,
+    "coulomb_friction": 5,
+    "excitation_mean": 6,
+}
+
+
+@numba.njit(cache=True)
+def _forces(q, v, ei, ej, code, coef, out):  # pragma: no cover - compiled
+    r"""The elements' forces on the dofs, :math:`B^{\mathsf T}f`, into ``out``."""
+    out[:] = 0.0
+    for c in range(code.size):
+        i, j = ei[c], ej[c]
+        r, rd = q[j], v[j]
+        if i >= 0:
+            r -= q[i]
+            rd -= v[i]
+        k = code[c]
+        if k == 0:
+            f = rd
+        elif k == 1:
+            f = rd * abs(rd)
+        elif k == 2:
+            f = r
+        elif k == 3:
+            f = r * r * r
+        elif k == 4:
+            f = r * r
+        elif k == 5:
+            f = np.sign(rd)
+        else:
+            f = -1.0
+        f *= coef[c]
+        out[j] += f
+        if i >= 0:
+            out[i] -= f
+
+
+@numba.njit(cache=True)
+def _heun_chain(q, v, dW, dZ, i0, sub, h, sys, burn, qs, vs, vh):  # pragma: no cover
+    """Heun on ``(q, v)`` over the intervals ``i0, i0 + 1, ...`` of this chunk.
+
+    ``sys`` is ``(ei, ej, code, coef, minv, drv)``.  Interval ``i`` ends at sample time
+    ``i + 1``; samples are the times ``burn .. burn + n_out - 1`` (``qs``, ``vs``), and
+    ``vh[k]`` is the velocity half an interval after the start of interval
+    ``burn - 1 + k``.
+    """
+    ei, ej, code, coef, minv, drv = sys
+    n = q.size
+    f0, f1 = np.empty(n), np.empty(n)
+    qp, vp = np.empty(n), np.empty(n)
+    n_int = dW.shape[0] // sub
+    k = 0
+    for ii in range(n_int):
+        i = i0 + ii
+        for s in range(sub):
+            _forces(q, v, ei, ej, code, coef, f0)
+            for d in range(n):
+                qp[d] = q[d] + h * v[d]
+                vp[d] = v[d] - h * f0[d] * minv[d]
+            for m in range(drv.size):
+                vp[drv[m]] += dW[k, m] * minv[drv[m]]
+            _forces(qp, vp, ei, ej, code, coef, f1)
+            for d in range(n):
+                q[d] += 0.5 * h * (v[d] + vp[d])
+                v[d] -= 0.5 * h * (f0[d] + f1[d]) * minv[d]
+            for m in range(drv.size):
+                d = drv[m]
+                q[d] += dZ[k, m] * minv[d]
+                v[d] += dW[k, m] * minv[d]
+            k += 1
+            if s == sub // 2 - 1 and vh.shape[0] > 0 and 0 <= i - burn + 1 < vh.shape[0]:
+                vh[i - burn + 1] = v
+        j = i + 1 - burn
+        if 0 <= j < qs.shape[0]:
+            qs[j] = q
+            vs[j] = v
+
+
+@dataclass(frozen=True, eq=False)
+class ChainRecord:
+    """A multi-channel record: ``x`` ``(n_samples, n_dofs)``, one column a dof (as
+    ``measured``: displacement or acceleration), sampled every ``dt`` s from ``t = 0``.
+    """
+
+    x: np.ndarray
+    dt: float
+    dofs: tuple[str, ...]
+    measured: tuple[str, ...]
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        x = np.array(self.x, dtype=float)
+        if x.ndim != 2 or x.shape[1] != len(self.dofs) or len(self.measured) != len(self.dofs):
+            raise HosidInputError(f"x must be (n_samples, {len(self.dofs)}), one column a dof")
+        if not np.all(np.isfinite(x)):
+            raise HosidInputError("a record must be finite")
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise HosidInputError("dt must be finite and positive")
+        if any(m not in MEASURED_KINDS for m in self.measured):
+            raise HosidInputError(f"measured must be one of {', '.join(MEASURED_KINDS)}")
+        x.setflags(write=False)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "dofs", tuple(self.dofs))
+        object.__setattr__(self, "measured", tuple(self.measured))
+
+    @property
+    def t(self) -> np.ndarray:
+        """Sample times (s)."""
+        return np.arange(self.x.shape[0]) * self.dt
+
+    def channel(self, dof: str) -> np.ndarray:
+        """The samples of one dof."""
+        return self.x[:, self.dofs.index(dof)]
+
+
+def _kernel_system(system: System, th: np.ndarray):
+    ei, ej, code = [], [], []
+    for e, term in system.columns:
+        if term.name not in CODES:
+            raise HosidInputError(f"the chain simulator does not know the term {term.name}")
+        a, b = system.elements[e].between
+        ei.append(-1 if a == GROUND else system.dofs.index(a))
+        ej.append(system.dofs.index(b))
+        code.append(CODES[term.name])
+    m = system.mass_vector(th)
+    drv = np.array([system.dofs.index(d) for d in system.driven], dtype=np.int64)
+    ints = (np.array(ei, dtype=np.int64), np.array(ej, dtype=np.int64))
+    return (*ints, np.array(code, dtype=np.int64), th[: system.n_drift].copy(), 1.0 / m, drv)
+
+
+def _check(system: System, th: np.ndarray, duration: float, dt: float, sub: int) -> float:
+    """Check the settings; return the slowest linear decay rate (0 if none)."""
+    if not np.all(np.isfinite(th)):
+        raise HosidInputError("simulation parameters must be finite")
+    if not np.all(system.mass_vector(th) > 0):
+        raise HosidInputError("masses must be positive")
+    if not np.all(system.levels(th)[[system.dofs.index(d) for d in system.driven]] > 0):
+        raise HosidInputError("S0 must be positive on every driven degree of freedom")
+    if not (math.isfinite(dt) and dt > 0 and math.isfinite(duration) and duration > 0):
+        raise HosidInputError("dt and duration must be finite and positive")
+    if round(duration / dt) < 16:
+        raise HosidInputError(
+            f"duration {duration:g} s at dt {dt:g} s gives fewer than 16 samples"
+        )
+    if sub < 2 or sub % 2:
+        raise HosidInputError("substeps must be even and at least 2 (the half-interval velocity)")
+    lam = np.linalg.eigvals(state_matrices(system, th)[0])
+    w = float(np.max(modes(system, th).omega, initial=0.0))
+    limit = float(THRESHOLDS["sampling"][1])
+    if w * dt / math.pi > limit:
+        raise HosidInputError(
+            f"dt = {dt:g} s is too coarse for this system: its linear mode near {w:.3g} rad/s "
+            f"needs dt < {limit * math.pi / w:.3g} s"
+        )
+    return float(max(np.min(-lam.real), 0.0))
+
+
+def simulate_chain(
+    system: System,
+    values=None,
+    *,
+    duration: float = 2000.0,
+    dt: float = 0.02,
+    rng: np.random.Generator,
+    substeps: int = 10,
+    burn_in: float | None = None,
+    measured=None,
+    name: str = "",
+    return_state: bool = False,
+) -> ChainRecord | tuple[ChainRecord, np.ndarray, np.ndarray]:
+    r"""Simulate one stationary multi-channel record of ``system`` (module docstring).
+
+    Parameters
+    ----------
+    system : System
+    values : mapping or vector, optional
+        The parameters (default the system's own ``values``, all needed).
+    duration, dt : float
+        Record length and sampling interval (s).
+    rng : numpy.random.Generator
+        The only source of randomness.
+    substeps : int
+        Heun steps per sample (even).
+    burn_in : float, optional
+        Seconds simulated from rest and discarded: default 30 decay times of the slowest
+        mode of the linear part, :math:`\min(-\mathrm{Re}\,\lambda)`, between 60 and
+        20 000 s (600 s if the linear part does not decay).
+    measured : str or mapping, optional
+        What each channel holds (default the system's ``measured``).
+    return_state : bool
+        Also return the displacements and velocities at the sample times, each
+        ``(n_samples, n)``.
+
+    Raises
+    ------
+    HosidInputError
+        On missing or impossible values or settings, or a response that escapes.
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError("rng must be a numpy.random.Generator")
+    th = system.vector(values)
+    if th.ndim != 1:
+        raise HosidInputError("simulate_chain takes one parameter vector")
+    kinds = system.measured if measured is None else check_measured(measured, system.dofs)
+    rate = _check(system, th, duration, dt, int(substeps))
+    if burn_in is None:
+        burn_in = min(max(60.0, 30.0 / rate), 20000.0) if rate > 0 else 600.0
+    n_out, sub, n = round(duration / dt), int(substeps), system.n
+    burn = max(round(burn_in / dt), 1)
+    h = dt / sub
+    kernel = _kernel_system(system, th)
+    levels = system.levels(th)[kernel[-1]]
+    sd_w = np.sqrt(2.0 * math.pi * levels * h)
+    sd_z = np.sqrt(2.0 * math.pi * levels * h**3 / 12.0)
+    q, v = np.zeros(n), np.zeros(n)
+    qs, vs = np.empty((n_out, n)), np.empty((n_out, n))
+    vh = np.empty((n_out + 1 if "acceleration" in kinds else 0, n))
+    for i0 in range(0, burn + n_out, CHUNK):
+        size = (min(i0 + CHUNK, burn + n_out) - i0) * sub
+        dW = rng.standard_normal((size, levels.size)) * sd_w
+        dZ = rng.standard_normal((size, levels.size)) * sd_z
+        _heun_chain(q, v, dW, dZ, i0, sub, h, kernel, burn, qs, vs, vh)
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise HosidInputError(
+                "the simulated response escaped (no stationary state for these values, or "
+                f"dt = {dt:g} s with {sub} substeps is too coarse for the system)"
+            )
+    x = qs.copy()
+    if vh.size:
+        acc = np.diff(vh, axis=0) / dt
+        for d, kind in enumerate(kinds):
+            if kind == "acceleration":
+                x[:, d] = acc[:, d]
+    record = ChainRecord(x, float(dt), system.dofs, kinds, name)
+    return (record, qs, vs) if return_state else record
+
+
+def write_chain_record(record: ChainRecord, path: str | Path) -> Path:
+    """Write a multi-channel record to CSV (header ``t,<dof>,...``; times with 15
+    significant digits, samples with 10) or ``.npz`` (one array a dof, exactly, and
+    ``dt``, ``dofs``, ``measured``), chosen by the suffix.
+
+    Raises
+    ------
+    HosidInputError
+        If the suffix is not ``.csv`` or ``.npz`` or the file cannot be written.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".npz"):
+        raise HosidInputError(
+            f"{path}: unknown file type {path.suffix or '(none)'!r}; use .csv or .npz"
+        )
+    try:
+        if suffix == ".csv":
+            data = np.column_stack([record.t, record.x])
+            fmt = ["%.15g", *(["%.10g"] * len(record.dofs))]
+            header = ",".join(("t", *record.dofs))
+            np.savetxt(path, data, fmt=fmt, delimiter=",", header=header, comments="")
+        else:
+            arrays = {d: record.x[:, k] for k, d in enumerate(record.dofs)}
+            with path.open("wb") as fh:
+                np.savez(
+                    fh,
+                    dt=np.float64(record.dt),
+                    dofs=np.array(record.dofs),
+                    measured=np.array(record.measured),
+                    **arrays,
+                )
+    except OSError as exc:
+        raise HosidInputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return path
