@@ -126,15 +126,22 @@ def test_estimate_corrects_an_impulsive_record_and_says_so():
     raw = estimate(rec, IMP, force=True, simulations=0)
     est = estimate(rec, IMP, force=True, simulations=2)
     assert any("sampling bias" in n for n in est.notes)
+    assert est.excitation_test["p_value"] < 1e-3  # the impulses show: kept
     assert not np.allclose(est.theta, raw.theta)
     # the same record gives the same estimate (the simulations' seed is the record's)
     again = estimate(rec, IMP, force=True, simulations=2)
     np.testing.assert_array_equal(again.theta, est.theta)
-    # a white record: many impulses a sample at the estimate, nothing to correct
+    # a white record: many impulses a sample at the estimate, nothing to correct; and the
+    # record does not reject the white Gaussian force, so the white model is estimated
     white = simulate(PAPER, duration=300.0, rng=np.random.default_rng(9))
-    est = estimate(white, IMP, force=True, simulations=2)
+    est = estimate(white, IMP, force=True, simulations=2, settle=False)
     assert est.values["rate"] * white.dt > 1.0
     assert not any("sampling bias" in n for n in est.notes)
+    settled = estimate(white, IMP, force=True, simulations=2)
+    assert settled.model.names == Model.from_spec("paper").names
+    test = settled.excitation_test
+    assert test["p_value"] >= test["level"] == 1e-3 and "chi-bar" in test["reference"]
+    assert est.excitation_test is None and "rate" in est.model.param_names
 
 
 @pytest.mark.slow

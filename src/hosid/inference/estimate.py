@@ -19,9 +19,9 @@ The excitation is settled against the record, unless ``settle=False``; the estim
   Nyquist frequency (:mod:`hosid.spectra.response`), the model gets
   ``band_limited_excitation`` (the edge :math:`\omega_b` and a roll-off :math:`\beta` of
   the force within its band; :func:`excitation_for`);
-- a shaping filter asked for (``narrowband_excitation``) is kept only when the record
-  rejects the white force it nests; otherwise the white model is estimated
-  (:mod:`hosid.inference.settle`).
+- a shaping filter or impulses asked for (``narrowband_excitation``,
+  ``impulsive_excitation``) are kept only when the record rejects the white Gaussian
+  force they nest; otherwise the white model is estimated (:mod:`hosid.inference.settle`).
 
 Component sets (``cost``; the restoring identities are the paper's moment method, J4
 gives equations along the damping and :math:`S_0` only):
@@ -65,7 +65,7 @@ from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, unbiased
 from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
-from .settle import WHITE_P, settled_term, white_limit
+from .settle import settled_term, white_limit
 from .solutions import alternatives, select_solution
 
 __all__ = [
@@ -303,7 +303,7 @@ def estimate(
     if settle and settled_term(model):
         test = white_limit(model, ql, theta, log_params=logs,
                            scale=typical_scale(model, state, theta))  # fmt: skip
-        if test["p_value"] >= WHITE_P:
+        if test["p_value"] >= test["level"]:
             white = model.without_term(test["effect"])
             est = estimate(
                 record, white, asked, block_seconds=block_seconds, settle=False,
@@ -348,7 +348,7 @@ def _settled_note(test: dict, *, kept: bool) -> str:
         return f"{test['effect']}: the record rejects a white force ({found})"
     return (
         f"{test['effect']} asked for, but the record does not reject a white force ({found} "
-        f">= {WHITE_P:g}): the white model is fitted (hosid.inference.settle)"
+        f">= {test['level']:g}): the white model is fitted (hosid.inference.settle)"
     )
 
 
