@@ -151,14 +151,20 @@ def summarize(tables: dict[str, Path], bound: dict[str, dict]) -> list[dict]:
                 truth, mean = _col(rows, f"true_{p}"), _col(rows, f"{p}_mean")
                 if np.all(np.isnan(truth)):
                     continue
-                n = mean.size
-                se = np.std(mean, ddof=1) / math.sqrt(n)
+                # a record whose fit dropped the term (the white force kept:
+                # hosid.inference.settle) has no value of its parameter: its interval
+                # holds nothing, and the mean is over the records that kept it
+                kept = np.isfinite(mean)
+                n = int(kept.sum())
+                if n < 2:
+                    continue
+                se = np.std(mean[kept], ddof=1) / math.sqrt(n)
                 bsd = bound.get(name, {}).get(p, math.nan)
-                err = mean - truth
+                err = mean[kept] - truth[kept]
                 out.append(
                     {
                         "case": name, "model": model, "param": p, "records": n,
-                        "truth": float(truth[0]), "mean": float(np.mean(mean)),
+                        "truth": float(truth[0]), "mean": float(np.mean(mean[kept])),
                         "bias_se": float(np.mean(err) / se) if se > 0 else math.nan,
                         "bias_bound_sd": float(np.mean(err) / bsd),
                         "tolerance_bound_sd": float(0.3 + 3 * se / bsd),
@@ -187,7 +193,9 @@ def write(rows: list[dict], out: Path, title: str | None = None, shaped=None) ->
         "`--model paper,narrowband_excitation` and with `--model paper` on the same records. "
         "bias: mean error over its standard error (se) and in bound sd; tolerance: "
         "0.3 bound sd + 3 se; cover: share of records whose interval holds the truth; "
-        "eff: bound variance / mean squared error.",
+        "eff: bound variance / mean squared error; n: the records whose fit kept the "
+        "parameter (a fit that keeps the white force has no wf, zf or rate: its interval "
+        "holds nothing).",
         "",
         "| case | model | param | n | truth | mean | bias/se | bias/bound sd | tolerance "
         "| 90 % | 50 % | eff |",

@@ -100,7 +100,9 @@ def main(argv: Sequence[str] | None = None) -> Path:
         "`--model paper,impulsive_excitation` and with `--model paper` on the same records. "
         "bias: mean error over its standard error (se) and in units of the white Gaussian "
         "force's bound (a reference); tolerance: 0.3 bound sd + 3 se; cover: share of "
-        "records whose interval holds the truth; eff: bound variance / mean squared error."
+        "records whose interval holds the truth; eff: bound variance / mean squared error; "
+        "n: the records whose fit kept the parameter (a fit that keeps the white force has "
+        "no rate: its interval holds nothing)."
     )
     kicked = [c for c in CASES if CASES[c][2] is not None]
     path = write(summarize(tables, bound), args.out, title=title, shaped=kicked.__contains__)
