@@ -48,6 +48,7 @@ def files(tmp_path_factory) -> Path:
     write_record(good, d / "rec.csv")
     (d / "folder.csv").mkdir()
     (d / "adir").mkdir()  # a folder without a suffix is named a folder too
+    (d / "rec.txt").write_text("t,x\n0,1\n")  # a file of an unknown type
     (d / "garbage.npz").write_bytes(b"\x00garbage" * 50)
     (d / "nocol.csv").write_text("time,x\n0,1\n0.02,2\n")
     (d / "text.csv").write_text("t,x\n0,1\n0.02,abc\n")

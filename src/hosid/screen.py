@@ -42,7 +42,9 @@ r"""Record checks before any estimation: can hosid describe this record at all.
     a drift is not: *wander*, the variance of block means of 16 periods over the
     variance).
 
-A ``fail`` means the record is outside what hosid describes: :func:`hosid.fit` and
+A record of several channels, or of an acceleration, is judged channel by channel and
+across channels (:mod:`hosid.record.channel_checks`).  A ``fail`` means the record is
+outside what hosid describes: :func:`hosid.fit` and
 :func:`hosid.estimate` raise :class:`~hosid.errors.RecordRejected` (exit code 3 on the
 command line) unless forced.  The thresholds, :data:`THRESHOLDS`, are set from simulated
 records (``analyses/record_checks.py``, which measures their false-alarm rate on good
@@ -63,7 +65,14 @@ from .record import Record
 from .spectra.blocks import MIN_BLOCKS, MIN_PERIODS, PERIODS
 from .verdicts import Check
 
-__all__ = ["THRESHOLDS", "check_record", "record_statistics", "reject_failures"]
+__all__ = [
+    "THRESHOLDS",
+    "check_record",
+    "clipping_check",
+    "quantisation_check",
+    "record_statistics",
+    "reject_failures",
+]
 
 #: ``(warn, fail)`` thresholds of each checked statistic (module docstring); ``None``:
 #: that level is not used.
@@ -188,7 +197,10 @@ def record_statistics(record: Record) -> dict[str, float]:
     ``levels_z``, ``clipped_share``, ``low``, ``high``, ``grid_step`` (0 for continuous
     values), ``quantisation_share``, ``flatness``, ``variation``, ``line_share``,
     ``wander``; for a constant record only the first four and ``constant = 1``.
+    One channel only (else :class:`~hosid.errors.HosidInputError`).
     """
+    if record.n_channels > 1:
+        raise HosidInputError("record_statistics takes one channel: use record.channel(name)")
     pieces = record.split(record.x)  # no statistic spans a gap between segments
     x, dt = record.x, record.dt
     mean = float(np.mean(x))
@@ -251,6 +263,10 @@ def check_record(record: Record, *, unit: str = "m") -> list[Check]:
     HosidInputError
         If the record is too short to be judged (the ``length`` check).
     """
+    if record.n_channels > 1 or "acceleration" in record.measured:
+        from .record.channel_checks import check_channels
+
+        return check_channels(record, unit=unit)
     st = record_statistics(record)
     if st["constant"]:
         msg = "the record is constant: there is no response to identify"
@@ -300,28 +316,8 @@ def check_record(record: Record, *, unit: str = "m") -> list[Check]:
             f"linear trend {z:.2g} standard errors from zero"
             + ("" if z < THRESHOLDS["trend"][0] else ": a drifting sensor or a changing load?"),
         ),
-        Check(
-            "clipping",
-            _status("clipping", share),
-            share,
-            f"{100 * share:.3g} % of the samples sit at the extremes {st['low']:.4g} and "
-            f"{st['high']:.4g} {unit}"
-            + ("" if share < THRESHOLDS["clipping"][0] else ": a saturated sensor?"),
-        ),
-        Check(
-            "quantisation",
-            _status("quantisation", q),
-            q,
-            "no sample grid: continuous values"
-            if not st["grid_step"]
-            else f"samples on a grid of {st['grid_step']:.3g} {unit}: its noise is "
-            f"{100 * q:.2g} % of the velocity's variance"
-            + (
-                ""
-                if q < THRESHOLDS["quantisation"][0]
-                else "; consider the measurement_noise term (--model paper,measurement_noise)"
-            ),
-        ),
+        clipping_check(share, st["low"], st["high"], unit),
+        quantisation_check(st["grid_step"], q, unit),
     ]
     flat, steady, wand, lines = st["flatness"], st["variation"], st["wander"], st["line_share"]
     why = ""  # the most specific reason: a wandering level dominates any spectrum
@@ -360,6 +356,28 @@ def check_record(record: Record, *, unit: str = "m") -> list[Check]:
         )
     )
     return checks
+
+
+def clipping_check(share: float, low: float, high: float, unit: str) -> Check:
+    """The ``clipping`` verdict on the share of samples at the extremes ``low``, ``high``."""
+    return Check(
+        "clipping",
+        _status("clipping", share),
+        share,
+        f"{100 * share:.3g} % of the samples sit at the extremes {low:.4g} and {high:.4g} "
+        f"{unit}" + ("" if share < THRESHOLDS["clipping"][0] else ": a saturated sensor?"),
+    )
+
+
+def quantisation_check(step: float, share: float, unit: str, of: str = "velocity") -> Check:
+    """The ``quantisation`` verdict: a grid of ``step`` (0: none), noise ``share`` of ``of``."""
+    hint = "; consider the measurement_noise term (--model paper,measurement_noise)"
+    msg = f"samples on a grid of {step:.3g} {unit}: its noise is {100 * share:.2g} % of the "
+    msg += f"{of}'s variance" + ("" if share < THRESHOLDS["quantisation"][0] else hint)
+    status = _status("quantisation", share)
+    return Check(
+        "quantisation", status, share, msg if step else "no sample grid: continuous values"
+    )
 
 
 def reject_failures(checks: Sequence[Check], *, force: bool = False) -> None:
