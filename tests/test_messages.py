@@ -23,8 +23,10 @@ from hosid.inference.chains import ChainFile
 from hosid.model import PAPER_PARAMS, simulate
 from hosid.output.files import locked_dir
 from hosid.record import Record, write_record
+from hosid.record.channel_checks import DUPLICATE_CORRELATION, HELD_SHARE
 from hosid.screen import THRESHOLDS
 from hosid.spectra.blocks import MIN_BLOCKS, MIN_PERIODS
+from hosid.spectra.integrate import BAND_RISE
 from hosid.verdicts import ESS_MIN, RHAT_MAX
 
 README = Path(__file__).resolve().parents[1] / "README.md"
@@ -118,4 +120,7 @@ def test_the_readme_quotes_the_thresholds_the_code_uses():
         assert (num(warn), num(fail)) == THRESHOLDS[key], check
     assert f"{MIN_BLOCKS} blocks of {MIN_PERIODS:.0f}" in rows["length"][1]
     assert num(rows["calibration"][2]) == HANSEN_P
+    assert num(rows["channels: duplicate"][3]) == DUPLICATE_CORRELATION
+    assert num(rows["channels: resampled"][3]) == HELD_SHARE
+    assert num(rows["channels: integration"][3]) == BAND_RISE
     assert rows["convergence"][2] == f">= {RHAT_MAX} / < {ESS_MIN:.0f}"
