@@ -101,26 +101,54 @@ def summarize(results: list[dict], out: Path) -> Path:
     return path
 
 
+def _merged(out: Path) -> Path:
+    """``diagnose.csv``: its rows and every shard's (``diagnose-K-of-N.csv``), one a
+    record (a shard's row replaces an older one)."""
+    path = out / "diagnose.csv"
+    rows: dict = {}
+    for f in [path, *sorted(out.glob("diagnose-*-of-*.csv"))]:
+        for r in read_csv(f):
+            rows[r["cell"], int(r["record"])] = r
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, FIELDS, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows.values())
+    for f in out.glob("diagnose-*-of-*.csv"):
+        f.unlink()
+    return path
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run (or resume) the study, then write the summary."""
+    """Run (or resume) the study, then write the summary.  ``--shard K/N`` runs every
+    N-th record from the K-th (0-based) into a file of its own, so that N processes share
+    the work; the summary merges them."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--records", type=int, default=None, help="at most this many a cell")
     ap.add_argument("--replicates", type=int, default=DEFAULT_REPLICATES)
     ap.add_argument("--summary", action="store_true", help="the table only")
+    ap.add_argument("--shard", default="0/1", help="K/N: this process's share of the records")
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
+    k, n = (int(x) for x in a.shard.split("/"))
     a.out.mkdir(parents=True, exist_ok=True)
-    path = a.out / "diagnose.csv"
     if not a.summary:
-        done = {(r["cell"], int(r["record"])) for r in read_csv(path)}
-        todo = [r for r in rows(a.records, a.replicates) if (r["cell"], r["record"]) not in done]
+        path = a.out / ("diagnose.csv" if n == 1 else f"diagnose-{k}-of-{n}.csv")
+        done = {
+            (r["cell"], int(r["record"]))
+            for f in [a.out / "diagnose.csv", path]
+            for r in read_csv(f)
+        }
+        mine = rows(a.records, a.replicates)[k::n]
+        todo = [r for r in mine if (r["cell"], r["record"]) not in done]
         new = not path.exists() or path.stat().st_size == 0
         with open(path, "a", newline="") as fh:
             w = csv.DictWriter(fh, FIELDS)
             if new:
                 w.writeheader()
             run_rows(todo, w, fh, SEED)
-    print(summarize(read_csv(path), a.out).read_text())
+        if n > 1:
+            return 0
+    print(summarize(read_csv(_merged(a.out)), a.out).read_text())
     return 0
 
 

@@ -93,14 +93,36 @@ def jump_table(G, v: np.ndarray, s2: float, sigma_v: float) -> np.ndarray:
     base = smoothed(Gu, math.sqrt(s2)) if s2 > (4 * du) ** 2 else Gu + 0.5 * s2 * second(Gu)
     b2 = second(base)
     b4 = second(b2)
-    out = []
+    # the block means of a linear interpolation at v are linear in the grid's values: one
+    # weight per block and grid point, on the few points the velocities reach
+    lo, W = _interpolation_weights(v, u[0], du)
+    diffs = []
     for s in var:
         if s > (4 * du) ** 2:
             diff = smoothed(base, math.sqrt(s)) - base
         else:  # below the grid's resolution: the expansion in the Gaussian's cumulants
             diff = 0.5 * s * b2 + s * s / 8.0 * b4
-        out.append(2.0 / s * np.interp(v, u, diff).mean(axis=-1))
-    return np.stack(out, axis=-1)
+        diffs.append(2.0 / s * diff[lo : lo + W.shape[-1]])
+    return W @ np.stack(diffs, axis=-1)
+
+
+def _interpolation_weights(v: np.ndarray, u0: float, du: float) -> tuple[int, np.ndarray]:
+    r"""``(lo, W)`` with ``W @ f[lo:lo + W.shape[-1]]`` the block means of the linear
+    interpolation of ``f`` (on the grid :math:`u_k = u_0 + k\,\Delta u`) at the velocities
+    ``v`` ``(B, M)``: each sample adds :math:`1 - w` to its grid point below and
+    :math:`w` to the one above, over :math:`M`.
+    """
+    pos = (np.asarray(v, dtype=float) - u0) / du
+    i = np.floor(pos).astype(np.int64)
+    w = pos - i
+    lo = int(i.min())
+    width = int(i.max()) - lo + 2
+    B, M = pos.shape
+    rows = np.repeat(np.arange(B) * width, M).reshape(B, M)
+    idx = rows + (i - lo)
+    W = np.bincount(idx.ravel(), (1.0 - w).ravel(), minlength=B * width)
+    W += np.bincount((idx + 1).ravel(), w.ravel(), minlength=B * width)
+    return lo, W.reshape(B, width) / M
 
 
 def read_table(table: np.ndarray, sigma2, sigma_v: float) -> np.ndarray:
