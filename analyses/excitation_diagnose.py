@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import csv
 import sys
+import zlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -101,44 +102,51 @@ def summarize(results: list[dict], out: Path) -> Path:
     return path
 
 
+PARTS = "diagnose-part-*.csv"
+
+
 def _merged(out: Path) -> Path:
-    """``diagnose.csv``: its rows and every shard's (``diagnose-K-of-N.csv``), one a
-    record (a shard's row replaces an older one)."""
+    """``diagnose.csv``: its rows and every part's (``diagnose-part-*.csv``, written by
+    runs of some shards or cells), one a record; the parts are then removed."""
     path = out / "diagnose.csv"
     rows: dict = {}
-    for f in [path, *sorted(out.glob("diagnose-*-of-*.csv"))]:
+    for f in [path, *sorted(out.glob(PARTS))]:
         for r in read_csv(f):
             rows[r["cell"], int(r["record"])] = r
     with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, FIELDS, lineterminator="\n")
         w.writeheader()
         w.writerows(rows.values())
-    for f in out.glob("diagnose-*-of-*.csv"):
+    for f in out.glob(PARTS):
         f.unlink()
     return path
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run (or resume) the study, then write the summary.  ``--shard K/N`` runs every
-    N-th record from the K-th (0-based) into a file of its own, so that N processes share
-    the work; the summary merges them."""
+    N-th record from the K-th (0-based) and ``--cells`` only some cells, each such run into
+    a part file of its own, so that several processes share the work; ``--summary``
+    merges the parts."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--records", type=int, default=None, help="at most this many a cell")
     ap.add_argument("--replicates", type=int, default=DEFAULT_REPLICATES)
-    ap.add_argument("--summary", action="store_true", help="the table only")
+    ap.add_argument("--summary", action="store_true", help="merge the parts; the table only")
     ap.add_argument("--shard", default="0/1", help="K/N: this process's share of the records")
+    ap.add_argument("--cells", nargs="+", choices=list(CELLS), default=list(CELLS))
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
     k, n = (int(x) for x in a.shard.split("/"))
     a.out.mkdir(parents=True, exist_ok=True)
     if not a.summary:
-        path = a.out / ("diagnose.csv" if n == 1 else f"diagnose-{k}-of-{n}.csv")
+        whole = n == 1 and set(a.cells) == set(CELLS)
+        tag = zlib.crc32(" ".join(sorted(a.cells)).encode())
+        path = a.out / ("diagnose.csv" if whole else f"diagnose-part-{k}-of-{n}-{tag:08x}.csv")
         done = {
             (r["cell"], int(r["record"]))
-            for f in [a.out / "diagnose.csv", path]
+            for f in [a.out / "diagnose.csv", *a.out.glob(PARTS)]
             for r in read_csv(f)
         }
-        mine = rows(a.records, a.replicates)[k::n]
+        mine = [r for r in rows(a.records, a.replicates) if r["cell"] in a.cells][k::n]
         todo = [r for r in mine if (r["cell"], r["record"]) not in done]
         new = not path.exists() or path.stat().st_size == 0
         with open(path, "a", newline="") as fh:
@@ -146,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if new:
                 w.writeheader()
             run_rows(todo, w, fh, SEED)
-        if n > 1:
+        if not whole:
             return 0
     print(summarize(read_csv(_merged(a.out)), a.out).read_text())
     return 0
