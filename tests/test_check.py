@@ -489,12 +489,16 @@ def test_rounds_name_in_order_veto_and_stop(clean_1000, monkeypatch):
 def test_the_gap_vetoes_only_when_it_can_judge():
     from hosid.check.diagnose import _veto
 
-    paper = ("paper",)
-    fin, worse, inf = (_fake_check(g, paper) for g in (2.0, 2.5, math.inf))
-    assert _veto(fin, _fake_check(1.9, paper)) is None
-    assert "does not narrow" in _veto(fin, worse) and "does not narrow" in _veto(fin, fin)
-    assert "diverge" in _veto(fin, inf)
-    assert _veto(inf, inf) is None and _veto(inf, fin) is None  # no finite gap to compare
+    paper, mu = ("paper",), "coulomb_friction"
+    fin, worse, inf = (_fake_check(g, (*paper, mu)) for g in (2.0, 2.5, math.inf))
+    assert _veto(fin, _fake_check(1.9, (*paper, mu)), mu) is None
+    assert "does not narrow" in _veto(fin, worse, mu)
+    assert "does not narrow" in _veto(fin, fin, mu)
+    assert "diverge" in _veto(fin, inf, mu)
+    assert _veto(inf, inf, mu) is None and _veto(inf, fin, mu) is None  # no finite gap
+    # a shaping filter whose fit settled to the white force is vetoed, whatever the gap
+    settled = _fake_check(1.0, paper)
+    assert "keeps the white force" in _veto(fin, settled, "narrowband_excitation")
 
 
 def _ev_stub(effect, p):

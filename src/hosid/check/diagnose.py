@@ -13,7 +13,9 @@ emcee, or the cheaper screened posterior), measures its posterior-predictive gap
    measure its gap: the gap **vetoes** the effect when the extended model's simulations
    diverge while the current model's do not, or its gap does not fall below the current
    one (then the next supported candidate is tried): an effect is named only if the model
-   with it predicts the record better.  When both models' simulations diverge the gap
+   with it predicts the record better.  A shaping filter or impulses whose fit keeps the
+   white force (:mod:`hosid.inference.settle`: the record does not reject it at that
+   test's level) are vetoed too.  When both models' simulations diverge the gap
    says nothing and the evidence decides;
 
 until no candidate is supported (or ``max_effects`` are named).  The three numbers of
@@ -185,8 +187,15 @@ def _candidates(base: Model, candidates: Sequence[str] | None) -> list[str]:
     return list(dict.fromkeys(cands))
 
 
-def _veto(current: ModelCheck, new: ModelCheck) -> str | None:
-    """Why the extended model's gap vetoes its effect (module docstring), or ``None``."""
+def _veto(current: ModelCheck, new: ModelCheck, effect: str) -> str | None:
+    """Why the extended model's fit or gap vetoes its effect (module docstring), or
+    ``None``.
+    """
+    if effect not in new.model.names:  # a shaping filter or impulses settled to white
+        return (
+            "its fit keeps the white force: the record does not reject it "
+            "(hosid.inference.settle)"
+        )
     if current.diverged:  # no finite gap to compare with
         return None
     if new.diverged:
@@ -333,7 +342,7 @@ def diagnose(
                 stage(f"fit + {c} ({posterior})", grow=1)
                 try:
                     new = check(current.model.extended(c), path_ss, posterior)
-                    why = _veto(current, new)
+                    why = _veto(current, new, c)
                 except HosidInputError as exc:
                     why = f"fitting it failed ({exc})"
                 bar.update()
