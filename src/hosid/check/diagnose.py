@@ -193,8 +193,7 @@ def _veto(current: ModelCheck, new: ModelCheck, effect: str) -> str | None:
     """
     if effect not in new.model.names:  # a shaping filter or impulses settled to white
         return (
-            "its fit keeps the white force: the record does not reject it "
-            "(hosid.inference.settle)"
+            "its fit keeps the white force: the record does not reject it (hosid.inference.settle)"
         )
     if current.diverged:  # no finite gap to compare with
         return None
