@@ -28,7 +28,7 @@ from hosid.batch.table import TIMES
 from hosid.cli import main
 from hosid.errors import HosidInputError, RecordRejected
 from hosid.output.files import locked_dir
-from hosid.output.results import load
+from hosid.output.results import load, versions
 from hosid.record import write_record
 from hosid.verdicts import Check
 
@@ -196,6 +196,11 @@ def test_corrupt_record_error_row_resume_and_lock(records, cluster, tmp_path):
     assert [r["status"] for r in rows] == ["ok"] * 4 + ["error"]
     assert "oops" in rows[-1]["message"]
     assert all(r["verdict"] == "pass" and math.isfinite(r["a1_mean"]) for r in rows[:4])
+    # the versions the tasks ran with, as summary.json has them; none for a record never read
+    ran = {f"version_{k}": v for k, v in versions().items()}
+    assert all({k: r[k] for k in ran} == ran for r in rows[:4])
+    assert all(rows[-1][k] is None for k in ran)
+    assert list(rows[0])[-len(ran) :] == list(ran)
 
     # rerun: nothing runs again; one row file removed: only that task runs
     tasks = record_tasks(expand_inputs([str(manifest)]), analysis="estimate", options={})

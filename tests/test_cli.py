@@ -7,11 +7,13 @@ Nothing is stubbed: the commands run the real engine on a 500 s record (24 block
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hosid import __version__, cli
+from hosid.errors import HosidInputError
 from hosid.model import PAPER_PARAMS
 from hosid.record import Record, read_record, write_record
 
@@ -200,6 +202,104 @@ def test_report_regenerates_from_the_posterior(fitted, capsys):
     assert "report.html" in text and "posterior.nc" not in text
 
 
+# ------------------------------------------------------------------ figure processes
+def _gone(pid: int) -> bool:
+    """Whether process ``pid`` has ended (a zombie waiting for init counts as ended)."""
+    import time
+    from pathlib import Path
+
+    for _ in range(200):
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (FileNotFoundError, ProcessLookupError):
+            return True
+        if state == "Z":
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.fixture
+def figure_processes(monkeypatch):
+    from hosid.output import render
+
+    monkeypatch.setenv("HOSID_FIGURE_PROCESSES", "1")  # whatever the load
+    if not render.enabled():
+        pytest.skip("figures are drawn in the command's process here")
+    return render
+
+
+@pytest.mark.parametrize(
+    ("error", "code", "line"),
+    [
+        (ValueError("no corner today"), 1, "drawing the report's figures failed: ValueError: "
+         "no corner today"),
+        (HosidInputError("cannot draw here"), 2, "cannot draw here"),
+    ],
+)  # fmt: skip
+def test_a_figure_that_fails_in_its_process_is_one_error_line_and_writes_nothing(
+    workdir, tmp_path, monkeypatch, capsys, figure_processes, error, code, line
+):
+    from hosid.output import plots
+
+    def broken(tree):
+        raise error
+
+    monkeypatch.setattr(plots, "corner_plot", broken)  # the forked processes inherit it
+    out = tmp_path / "fit"
+    argv = ["fit", str(workdir / "rec.csv"), "--steps", "50", "--no-progress", "--out", str(out)]
+    assert cli.main(argv) == code
+    assert one_error_line(capsys) == f"hosid: error: {line}"
+    assert [p.name for p in out.iterdir() if not p.name.startswith(".")] == []
+
+
+def test_a_figure_process_that_dies_or_hangs_is_an_error_not_a_wait(
+    workdir, tmp_path, monkeypatch, capsys, figure_processes
+):
+    import os
+    import time
+
+    from hosid.output import report
+
+    pids = tmp_path / "pids"
+
+    def dies(tree, stems, *, dpi):
+        os._exit(7)
+
+    def hangs(tree, stems, *, dpi):
+        with pids.open("a") as fh:
+            fh.write(f"{os.getpid()}\n")
+        time.sleep(600)
+
+    argv = ["fit", str(workdir / "rec.csv"), "--steps", "50", "--no-progress"]
+    monkeypatch.setattr(report, "draw", dies)
+    assert cli.main([*argv, "--out", str(tmp_path / "a")]) == 1
+    assert one_error_line(capsys).endswith("a figure process ended without drawing its figures")
+    monkeypatch.setattr(report, "draw", hangs)
+    monkeypatch.setattr(figure_processes, "TIMEOUT", 2.0)
+    monkeypatch.setattr(figure_processes, "_warm_up", lambda: None)  # takes the fit at once
+    assert cli.main([*argv, "--out", str(tmp_path / "b")]) == 1
+    assert one_error_line(capsys).endswith("the figures were not drawn within 2 s")
+    drawing = [int(p) for p in pids.read_text().split()]
+    assert len(drawing) == 2 and all(_gone(p) for p in drawing)  # both killed
+
+
+def test_without_figure_processes_the_files_are_the_same(
+    workdir, tmp_path, monkeypatch, figure_processes
+):
+    from hosid.output.report import STEMS
+
+    argv = ["fit", str(workdir / "rec.csv"), "--steps", "100", "--no-progress", "--seed", "5"]
+    assert cli.main([*argv, "--out", str(tmp_path / "a")]) == 0
+    monkeypatch.setenv("HOSID_FIGURE_PROCESSES", "0")
+    assert cli.main([*argv, "--out", str(tmp_path / "b")]) == 0
+    for stem in STEMS:
+        png = f"{stem}.png"
+        assert (tmp_path / "a" / png).read_bytes() == (tmp_path / "b" / png).read_bytes(), stem
+    names = [sorted(p.name for p in (tmp_path / d).iterdir()) for d in "ab"]
+    assert names[0] == names[1]
+
+
 def test_fit_backend_refuses_another_record(workdir, tmp_path, capsys):
     backend = tmp_path / "chain.h5"
     argv = ["--steps", "100", "--no-progress", "--backend", str(backend)]
@@ -237,6 +337,8 @@ def test_demo_runs_the_whole_pipeline_to_the_stop_rule(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "paper oscillator" in captured.out
     assert captured.err == ""  # no convergence warning
+    hidden = sorted(p.name for p in out.iterdir() if p.name.startswith("."))
+    assert hidden == [".hosid-manifest.json"]  # no lock, chain or staging folder left
 
 
 # ------------------------------------------------------------------ records hosid cannot describe
@@ -317,6 +419,7 @@ def test_force_fits_a_rejected_record_and_says_so_in_red(tmp_path, capsys):
         (["simulate", "--out", "r"], "unknown file type '(none)'"),
         (["estimate"], "required: record"),
         (["estimate", "missing.csv"], "missing.csv: no such file"),
+        (["estimate", "missing.txt"], "missing.txt: no such file"),  # not its type
         (["estimate", "rec.txt"], "unknown file type"),
         (["estimate", "REC", "--method", "J3"], "invalid choice: 'J3'"),
         (["estimate", "REC", "--cost", "J3"], "invalid choice: 'J3'"),
@@ -409,6 +512,21 @@ def test_version_and_help(capsys):
         assert option in capsys.readouterr().out
 
 
+def test_monitor_help_names_no_analysis_monitor_has_not(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["monitor", "--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    assert "--model MODEL" in text and "diagnose" not in text
+
+
+def test_importing_python_m_hosid_runs_nothing(capsys):
+    import importlib
+
+    importlib.import_module("hosid.__main__")
+    assert capsys.readouterr() == ("", "")
+
+
 @pytest.mark.parametrize("argv", [["--no-such-option"], ["estimate", "does-not-exist.csv"]])
 def test_python_m_hosid_exits_2_without_traceback(tmp_path, argv):
     proc = subprocess.run(
@@ -440,9 +558,12 @@ def test_ctrl_c_keeps_the_chain_and_the_same_command_resumes_it(workdir, tmp_pat
     while not chain.exists() and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.05)  # the chain is stored after its first 500 steps
     assert chain.exists(), "the fit stored no chain"
+    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+    drawing = [int(p) for p in children.read_text().split()] if children.exists() else []
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130
+    assert all(_gone(p) for p in drawing)  # the figure process ends with the command
     lines = err.splitlines()
     assert len(lines) == 1 and "Traceback" not in err, err
     assert lines[0].startswith("hosid: interrupted; the chain so far is kept; resume with: ")

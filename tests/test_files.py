@@ -74,7 +74,7 @@ def test_a_locked_folder_stops_a_second_command_at_once(tmp_path):
         assert res.returncode == 2
         assert "is in use by 'hosid fit rec.csv'" in res.stdout
     assert (out / "a.txt").read_text() == "first"
-    assert (out / LOCK_NAME).exists()
+    assert not (out / LOCK_NAME).exists()  # removed as the command ends
 
 
 def test_an_existing_file_is_not_a_folder(tmp_path):

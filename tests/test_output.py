@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from html import escape
 
 import numpy as np
@@ -14,8 +15,9 @@ from matplotlib.figure import Figure
 from hosid.errors import HosidInputError
 from hosid.inference import fit
 from hosid.model import PAPER_PARAMS, simulate
-from hosid.output import plots, spectrum_plots
-from hosid.output.report import figures, write_report
+from hosid.output import labels, plots, render, spectrum_plots
+from hosid.output.files import png
+from hosid.output.report import CAPTIONS, draw, figures, write_report
 from hosid.output.results import attr, summarize
 
 PAPER = ["a1", "n1", "a2", "n2", "S0"]
@@ -48,16 +50,16 @@ def _legend(ax) -> list[str]:
 
 # ------------------------------------------------------------------ labels
 def test_labels_and_units():
-    assert plots.label("a1") == "$a_1$ (1/s)"
-    assert plots.label("n2", "mm") == "$n_2$ (1/(mm² s²))"
-    assert plots.unit("S0") == "m²/s³"
-    assert plots.unit("a1eq") == "1/s"
-    assert plots.unit("unknown") == ""
-    assert plots.label("x12") == "$x_{12}$"
+    assert labels.label("a1") == "$a_1$ (1/s)"
+    assert labels.label("n2", "mm") == "$n_2$ (1/(mm² s²))"
+    assert labels.unit("S0") == "m²/s³"
+    assert labels.unit("a1eq") == "1/s"
+    assert labels.unit("unknown") == ""
+    assert labels.label("x12") == "$x_{12}$"
 
 
 def test_known_truths_derive_a1eq(paper_fit):
-    known = plots.known_truths(paper_fit)
+    known = labels.known_truths(paper_fit)
     sigma_v = paper_fit.attrs["sigma_v"]
     expected = PAPER_PARAMS["a1"] + PAPER_PARAMS["n1"] * math.sqrt(8 / math.pi) * sigma_v
     assert known["a1eq"] == pytest.approx(expected, rel=1e-12)
@@ -70,7 +72,7 @@ def test_corner_plot_has_parameters_a1eq_units_and_titles(paper_fit):
     k = len(PAPER) + 1
     assert len(fig.axes) == k * k
     bottom = [fig.axes[(k - 1) * k + j].get_xlabel() for j in range(k)]
-    assert bottom == [plots.label(p) for p in [*PAPER, "a1eq"]]
+    assert bottom == [labels.label(p) for p in [*PAPER, "a1eq"]]
     assert "(m²/s³)" in bottom[4] and "(1/m)" in bottom[1]
     titles = [fig.axes[i * k + i].get_title() for i in range(k)]
     assert all("=" in t for t in titles)  # median with 5/95 % offsets
@@ -83,7 +85,7 @@ def test_corner_plot_linear_model_drops_redundant_a1eq(linear_fit):
     fig = plots.corner_plot(linear_fit)
     assert len(fig.axes) == 9
     assert [fig.axes[6 + j].get_xlabel() for j in range(3)] == [
-        plots.label(p) for p in ("a1", "a2", "S0")
+        labels.label(p) for p in ("a1", "a2", "S0")
     ]
 
 
@@ -139,7 +141,7 @@ def test_restoring_force_linear_model(linear_fit):
 
 def test_trace_plot_rows_and_walkers(paper_fit):
     fig = plots.trace_plot(paper_fit, max_walkers=4)
-    assert [ax.get_ylabel() for ax in fig.axes] == [plots.label(p) for p in [*PAPER, "lp"]]
+    assert [ax.get_ylabel() for ax in fig.axes] == [labels.label(p) for p in [*PAPER, "lp"]]
     assert all(len(ax.get_lines()) == 4 for ax in fig.axes)
     assert fig.axes[-1].get_xlabel() == "step after burn-in"
     with pytest.raises(ValueError, match="max_walkers"):
@@ -201,6 +203,37 @@ def test_figures_by_stem(paper_fit, linear_fit):
 
 
 # ------------------------------------------------------------------ report
+def test_figures_drawn_in_other_processes_are_those_drawn_here(paper_fit, monkeypatch):
+    monkeypatch.setenv("HOSID_FIGURE_PROCESSES", "1")  # whatever the load
+    if not render.enabled():
+        pytest.skip("no figure processes here")
+    with render.FigureProcesses(dpi=30) as figures:
+        assert figures.running
+        images = figures.handed(paper_fit)()
+    assert images == draw(paper_fit, dpi=30)
+    assert sorted(images) == sorted(STEMS)
+    monkeypatch.setenv("HOSID_FIGURE_PROCESSES", "0")
+    with render.FigureProcesses() as figures:
+        assert not figures.running and figures.handed(paper_fit) is None
+    monkeypatch.delenv("HOSID_FIGURE_PROCESSES")  # the default: by the load average
+    cores = os.cpu_count() or 1
+    monkeypatch.setattr(os, "getloadavg", lambda: (cores - 0.5, 0.0, 0.0))
+    assert render.enabled() == (cores > 1)
+    monkeypatch.setattr(os, "getloadavg", lambda: (cores + 0.5, 0.0, 0.0))
+    assert not render.enabled()
+    with pytest.raises(RuntimeError, match="no figure process"):
+        figures.send(paper_fit)
+
+
+def test_write_report_takes_the_figures_drawn_elsewhere(paper_fit, tmp_path):
+    given = draw(paper_fit, ["trace", "corner"], dpi=30)
+    paths = write_report(paper_fit, tmp_path, images=lambda: given)
+    assert [p.name for p in paths] == ["report.html", "summary.json", "corner.png", "trace.png"]
+    assert (tmp_path / "trace.png").read_bytes() == given["trace"]
+    html = paths[0].read_text(encoding="utf-8")
+    assert html.index(CAPTIONS["corner"][:30]) < html.index(CAPTIONS["trace"][:30])
+
+
 def test_write_report_files_html_and_summary(paper_fit, tmp_path):
     out = tmp_path / "new" / "report"
     paths = write_report(paper_fit, out, dpi=40)
@@ -333,3 +366,53 @@ print("distributed" in sys.modules, dask.base._distributed_available())
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["False", "True"]
+
+
+def test_the_lock_file_goes_with_the_command_and_a_removed_one_is_not_held(tmp_path, monkeypatch):
+    import builtins
+    import os
+
+    from hosid.output import files
+
+    out = tmp_path / "out"
+    with files.locked_dir(out, command="first"):
+        assert (out / files.LOCK_NAME).read_text().startswith("'first' (pid ")
+    assert not (out / files.LOCK_NAME).exists()
+    calls = []
+
+    def opened_as_the_last_command_ends(path, mode):
+        fh = builtins.open(path, mode)
+        if not calls:  # the command before removes its lock file between open and flock
+            os.unlink(path)
+        calls.append(path)
+        return fh
+
+    monkeypatch.setattr(files, "open", opened_as_the_last_command_ends, raising=False)
+    with files.locked_dir(out, command="second"):
+        assert len(calls) == 2  # the removed file's lock was dropped, the new file locked
+        assert (out / files.LOCK_NAME).read_text().startswith("'second' (pid ")
+    assert not (out / files.LOCK_NAME).exists()
+
+
+def test_the_monitor_s_figure_leaves_the_session_s_backend_alone():
+    from types import SimpleNamespace
+
+    import matplotlib
+
+    from hosid.monitor.report import plot_tracks
+
+    start = 100.0 * np.arange(5)
+    values = {"mean": np.ones(5), "q05": np.zeros(5), "q95": np.full(5, 2.0), "sd": np.ones(5)}
+    tracks = SimpleNamespace(
+        values={"a1": values, "S0": values}, start=start, end=start + 100, failed=[], kinds={}
+    )
+    before = matplotlib.get_backend()
+    matplotlib.use("pdf")
+    try:
+        fig = plot_tracks(tracks, [])
+        assert matplotlib.get_backend() == "pdf"
+    finally:
+        matplotlib.use(before)
+    assert isinstance(fig, Figure)
+    assert [ax.get_ylabel() for ax in fig.axes] == ["a1", "S0"]
+    assert png(fig)[:4] == b"\x89PNG"

@@ -6,19 +6,21 @@ failure ends with one line on stderr and no traceback:
 - bad input of any kind: ``hosid: error: <message>``, exit code 2;
 - a record that hosid's model class cannot describe (:mod:`hosid.screen`):
   ``hosid: rejected: <why>``, exit code 3 (``--force`` fits it anyway);
-- Ctrl-C: ``hosid: interrupted; ...`` naming the command that resumes, exit code 130.
+- Ctrl-C: ``hosid: interrupted; ...`` naming the command that resumes, exit code 130;
+- a process drawing the figures failed: ``hosid: error: ...``, exit code 1.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import shlex
 import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from hosid import __version__, commands
-from hosid.arguments import integer, nonnegative, number, positive, probability
+from hosid.arguments import integer, positive, probability
 from hosid.errors import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
@@ -26,10 +28,13 @@ from hosid.errors import (
     HosidInputError,
     RecordRejected,
 )
+from hosid.output.render import FigureError
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 EXIT_USAGE = EXIT_INPUT
+#: A process drawing the report's figures failed (:mod:`hosid.output.render`).
+EXIT_FIGURES = 1
 #: The commands and their help in ``hosid --help``, in order (batch's and monitor's own
 #: parsers repeat theirs).
 COMMANDS = {
@@ -140,68 +145,9 @@ def _add(sub, name: str) -> argparse.ArgumentParser:
 
 
 def _add_simulate(sub) -> None:
-    sim = _add(sub, "simulate")
-    for name, kind, default in (
-        ("a1", nonnegative, 0.5),
-        ("n1", nonnegative, 0.5),
-        ("a2", number, 25.0),
-        ("n2", nonnegative, 5.0),
-        ("S0", positive, 100.0),
-    ):
-        sim.add_argument(f"--{name}", type=kind, default=default, help=f"default {default:g}")
-    for name, kind, text in (
-        ("b2", number, "quadratic stiffness b2 x^2"),
-        ("mu", nonnegative, "Coulomb friction mu sign(x')"),
-        ("m", number, "mean force m"),
-        ("wc", positive, "corner (rad/s) of a low-pass on the force"),
-        ("wb", positive, "edge (rad/s) above which the force has no power"),
-        ("rolloff", nonnegative, "roll-off beta of the band-limited force within its band"),
-        ("wf", positive, "frequency (rad/s) of a second-order shaping filter on the force"),
-        ("zf", positive, "damping ratio of that filter (with --wf)"),
-        ("noise_sd", positive, "sd of white measurement noise on x"),
-    ):
-        sim.add_argument(
-            f"--{name.replace('_', '-')}", dest=name, type=kind, help=f"{text}; default none"
-        )
-    sim.add_argument(
-        "--impulse-rate",
-        dest="rate",
-        type=positive,
-        help="Poisson impulses a second with Gaussian areas in place of the white force "
-        "(the same level S0, not Gaussian); default none",
-    )
-    sim.add_argument(
-        "--change-at",
-        type=positive,
-        metavar="T",
-        help="seconds from the first sample at which the parameters change to the --*-after "
-        "values; default no change",
-    )
-    sim.add_argument(
-        "--ramp",
-        type=nonnegative,
-        metavar="R",
-        help="seconds over which they move linearly to those values; default 0 (a step)",
-    )
-    for name, kind in (
-        ("a1", nonnegative),
-        ("n1", nonnegative),
-        ("a2", number),
-        ("n2", nonnegative),
-        ("S0", positive),
-    ):
-        sim.add_argument(
-            f"--{name}-after",
-            dest=f"{name}_after",
-            type=kind,
-            metavar="V",
-            help=f"{name} after the change (with --change-at); default unchanged",
-        )
-    sim.add_argument("--duration", type=positive, default=2000.0, help="seconds, default 2000")
-    sim.add_argument("--dt", type=positive, default=0.02, help="seconds, default 0.02")
-    sim.add_argument("--seed", type=integer(0), default=0, help="default 0")
-    sim.add_argument("--out", required=True, help="output file, .csv or .npz")
-    sim.set_defaults(func=commands.cmd_simulate)
+    from hosid.cli_simulate import add_simulate_parser
+
+    add_simulate_parser(sub.add_parser("simulate", help=COMMANDS["simulate"], allow_abbrev=False))
 
 
 def _add_estimate(sub) -> None:
@@ -363,10 +309,21 @@ def _resume_hint(args: argparse.Namespace) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code (0; 2 bad input; 3 rejected record;
-    130 interrupted).
+    """Run the command line; returns the exit code (0; 1 a figure process failed; 2 bad
+    input; 3 rejected record; 130 interrupted).
+
+    Without ``argv`` (the console script, ``python -m hosid``) it runs the process's own
+    command line, which ends when it returns: the objects made so far are frozen
+    (:func:`gc.freeze`), so that the interpreter's exit does not collect them once more
+    (a third of a second after a fit).
     """
-    argv = list(sys.argv[1:] if argv is None else argv)
+    code = _run(list(sys.argv[1:] if argv is None else argv))
+    if argv is None:
+        gc.freeze()
+    return code
+
+
+def _run(argv: list[str]) -> int:
     args = None
     try:
         parser = build_parser(_command(argv))
@@ -384,6 +341,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RecordRejected as exc:
         print(f"hosid: rejected: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_REJECTED
+    except FigureError as exc:
+        print(f"hosid: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_FIGURES
     except KeyboardInterrupt:
         hint = _resume_hint(args) if args is not None and hasattr(args, "command_line") else ""
         print(f"hosid: interrupted; {hint}".rstrip("; "), file=sys.stderr)

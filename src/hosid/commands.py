@@ -7,15 +7,14 @@ parsed ``argparse.Namespace`` and returns an exit code.
 from __future__ import annotations
 
 import json
-import math
 import os
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from hosid.errors import HosidInputError
+from hosid.output.console import fmt, print_fit, table
 
 #: Old ``--method`` names of ``hosid estimate`` and the cost they now mean.
 METHODS = {
@@ -26,29 +25,8 @@ METHODS = {
     "paper": "J4A",
     "moments": "J2",
 }
-FIT_COLUMNS = ("mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk")
 #: The chain a ``hosid fit`` keeps in its ``--out`` folder until the fit is written.
 CHAIN_NAME = ".hosid-chain.h5"
-
-
-def _fmt(value) -> str:
-    if value is None:
-        return "-"
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return str(value)
-    return "-" if math.isnan(number) else f"{number:.4g}"
-
-
-def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
-    lines = [
-        "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip()
-        for r in [header, *rows]
-    ]
-    lines.insert(1, "  ".join("-" * w for w in widths))
-    return "\n".join(lines)
 
 
 def _read(path: str):
@@ -64,24 +42,6 @@ def _model(args):
     from hosid.model.measured import with_shape
 
     return with_shape(args.model, args.excitation_shape)
-
-
-def _print_fit(summary: dict) -> None:
-    params = summary["parameters"]
-    print(
-        f"{summary.get('record') or 'record'}: {' + '.join(summary.get('model') or [])}, "
-        f"components {', '.join(summary.get('components') or [])}; "
-        f"{summary['n_walkers']} walkers x {summary['n_draws']} draws, "
-        f"{_fmt(summary.get('fit_seconds'))} s"
-    )
-    rows = [[k, *(_fmt(r.get(c)) for c in FIT_COLUMNS)] for k, r in params.items()]
-    print(_table(["parameter", *FIT_COLUMNS], rows))
-    if summary.get("diagnostic_failures"):
-        print(
-            "hosid: warning: convergence diagnostics failed: "
-            + "; ".join(summary["diagnostic_failures"]),
-            file=sys.stderr,
-        )
 
 
 # --- commands -------------------------------------------------------------------------
@@ -168,14 +128,14 @@ def cmd_estimate(args) -> int:
     z = 1.6448536269514722  # the 95 % quantile of N(0, 1)
     print(
         f"{record.name or args.record}: {est.model!r}, {cost or 'default'} components; "
-        f"Hansen J = {_fmt(est.test['J'])} on {est.test['df']} df "
-        f"(p = {_fmt(est.test['p_value'])})"
+        f"Hansen J = {fmt(est.test['J'])} on {est.test['df']} df "
+        f"(p = {fmt(est.test['p_value'])})"
     )
     rows = [
-        [n, _fmt(v), _fmt(s), _fmt(v - z * s), _fmt(v + z * s)]
+        [n, fmt(v), fmt(s), fmt(v - z * s), fmt(v + z * s)]
         for n, v, s in zip(names, values, sd, strict=True)
     ]
-    print(_table(["parameter", "estimate", "sd", "5%", "95%"], rows))
+    print(table(["parameter", "estimate", "sd", "5%", "95%"], rows))
     if args.json:
         from hosid.output.files import write_atomic
         from hosid.output.results import jsonable
@@ -229,28 +189,34 @@ def _checked(args, record):
     return checks
 
 
-def _write_fit(tree, stage: Path) -> list[str]:
+def _write_fit(tree, stage: Path, figures) -> list[str]:
+    """``posterior.nc`` and the report, the figures drawn by ``figures`` meanwhile
+    (:class:`hosid.output.render.FigureProcesses`) when it runs.
+    """
     from hosid.output.report import write_report
     from hosid.output.results import save
 
+    images = figures.handed(tree)
     save(tree, stage / "posterior.nc")
-    return ["posterior.nc", *(p.name for p in write_report(tree, stage))]
+    return ["posterior.nc", *(p.name for p in write_report(tree, stage, images=images))]
 
 
 def _fit_into(out: Path, record, *, command: str, backend: str | None, extra=None, **options):
     """Fit ``record`` into the locked, staged folder ``out`` (:mod:`hosid.output.files`).
 
     The chain is kept in ``--backend`` or in ``out/.hosid-chain.h5`` until the fit is
-    written, so that the same command resumes it after Ctrl-C.  ``extra(stage)`` writes
-    more files into the same commit and returns their names.
+    written, so that the same command resumes it after Ctrl-C.  The figures are drawn
+    in processes started before the fit (:mod:`hosid.output.render`).  ``extra(stage)``
+    writes more files into the same commit and returns their names.
     """
     from hosid.inference import fit
     from hosid.output.files import locked_dir, staged
+    from hosid.output.render import FigureProcesses
     from hosid.progress import Stages
 
     stages = Stages("hosid fit", enabled=bool(options.pop("progress", True)))
     try:
-        with locked_dir(out, command=command):
+        with locked_dir(out, command=command), FigureProcesses() as figures:
             chain = Path(backend) if backend else out / CHAIN_NAME
             stages.stage("estimate")
             try:
@@ -262,12 +228,12 @@ def _fit_into(out: Path, record, *, command: str, backend: str | None, extra=Non
                 tree = fit(record, backend=chain, progress=stages, **options)
             stages.stage("report")
             with staged(out, command=command) as stage:
-                names = _write_fit(tree, stage) + (extra(stage) if extra else [])
+                names = _write_fit(tree, stage, figures) + (extra(stage) if extra else [])
             if not backend:
                 chain.unlink(missing_ok=True)
     finally:
         stages.close()
-    _print_fit(json.loads((out / "summary.json").read_text(encoding="utf-8")))
+    print_fit(json.loads((out / "summary.json").read_text(encoding="utf-8")))
     print("wrote " + ", ".join(str(out / n) for n in names))
     return 0
 
@@ -343,7 +309,7 @@ def cmd_diagnose(args) -> int:
         names += [p.name for p in write_diagnosis(diag, stage)]
     out = Path(args.out)
     rep = diag.report()
-    gaps = " -> ".join(_fmt(g) for g in rep["gaps"])
+    gaps = " -> ".join(fmt(g) for g in rep["gaps"])
     print(f"base {' + '.join(rep['base'])}: gap {gaps}")
     print(f"named: {', then '.join(rep['named_effects']) or 'none'} - {rep['decision']}")
     for st in rep["steps"]:
@@ -355,13 +321,15 @@ def cmd_diagnose(args) -> int:
 def cmd_report(args) -> int:
     """``hosid report``: rewrite a fit's report from its posterior.nc."""
     from hosid.output.files import output_dir
+    from hosid.output.render import FigureProcesses
     from hosid.output.report import write_report
     from hosid.output.results import load
 
     out = Path(args.dir)
-    tree = load(out / "posterior.nc")
-    with output_dir(out, command=args.command_line, keep=("posterior.nc",)) as stage:
-        names = [p.name for p in write_report(tree, stage)]
+    with FigureProcesses() as figures:  # they import matplotlib while the fit loads
+        tree = load(out / "posterior.nc")
+        with output_dir(out, command=args.command_line, keep=("posterior.nc",)) as stage:
+            names = [p.name for p in write_report(tree, stage, images=figures.handed(tree))]
     print("wrote " + ", ".join(str(out / n) for n in names))
     return 0
 

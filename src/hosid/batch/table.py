@@ -12,12 +12,15 @@ Every file is written atomically (:func:`hosid.output.files.write_atomic`).  The
 columns: the record and its outcome (``status`` ok | rejected | error, ``verdict`` pass |
 warn | fail, ``message``), the analysis and its settings, then for every parameter
 ``<name>_<stat>`` for the statistics of :data:`STATS`, then the true values
-``true_<name>``.  Numbers are written with all their digits.
+``true_<name>``, then the versions of hosid, its libraries and Python the task ran with,
+``version_<name>`` (:func:`hosid.output.results.versions`, as in a fit's
+``summary.json``).  Numbers are written with all their digits.
 """
 
 from __future__ import annotations
 
 import csv
+import functools
 import importlib.util
 import io
 import json
@@ -27,13 +30,14 @@ from typing import Any
 
 from ..errors import HosidInputError
 from ..output.files import make_dir, write_atomic
-from ..output.results import jsonable
+from ..output.results import LIBRARIES, jsonable, versions
 
 __all__ = [
     "LEAD",
     "STATS",
     "TABLE",
     "TIMES",
+    "VERSION",
     "columns",
     "read_results",
     "read_rows",
@@ -95,6 +99,9 @@ STATS = (
 )
 #: Columns that measure time (they differ between runs of the same task).
 TIMES = ("fit_seconds", "task_seconds")
+#: Prefix of the columns of the versions, ``version_numpy`` ...
+VERSION = "version_"
+_VERSIONS = tuple(f"{VERSION}{k}" for k in (*LIBRARIES, "python"))
 
 
 def _params(rows: Iterable[Mapping[str, Any]]) -> list[str]:
@@ -118,7 +125,9 @@ def columns(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     truths = sorted(k for k in present if k.startswith("true_"))
     order = {f"true_{p}": i for i, p in enumerate(params)}
     cols += sorted(truths, key=lambda k: (order.get(k, len(order)), k))
-    cols += sorted(present - set(cols))
+    rest = sorted(present - set(cols) - set(_VERSIONS))
+    cols += [k for k in rest if not k.startswith(VERSION)]
+    cols += [k for k in _VERSIONS if k in present] + [k for k in rest if k.startswith(VERSION)]
     return cols
 
 
@@ -127,8 +136,18 @@ def stored(row: Mapping[str, Any]) -> dict[str, Any]:
     return jsonable(dict(row))
 
 
-def write_row(out: Path, row: Mapping[str, Any]) -> Path:
-    """Write a task's row to ``out/tasks/<task id>.json``."""
+@functools.cache
+def _versions() -> dict[str, str | None]:
+    return {f"{VERSION}{k}": v for k, v in versions().items()}
+
+
+def write_row(out: Path, row: dict[str, Any]) -> Path:
+    """Write a task's row to ``out/tasks/<task id>.json``; a row without the versions
+    (``version_<name>``) gets this process's first, in place: the table shows what the
+    file holds.
+    """
+    if not any(k.startswith(VERSION) for k in row):
+        row.update(_versions())
     folder = make_dir(Path(out) / "tasks")
     return write_atomic(folder / f"{row['task']}.json", json.dumps(stored(row), indent=1) + "\n")
 
@@ -193,7 +212,8 @@ def _value(text: str) -> Any:
 
 
 def read_results(path: str | Path) -> list[dict[str, Any]]:
-    """The rows of a ``results.csv`` (numbers as numbers, empty cells as ``None``).
+    """The rows of a ``results.csv`` (numbers as numbers, versions as text, empty cells
+    as ``None``).
 
     Raises
     ------
@@ -203,6 +223,9 @@ def read_results(path: str | Path) -> list[dict[str, Any]]:
     path = Path(path)
     try:
         with path.open(newline="") as fh:
-            return [{k: _value(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+            return [
+                {k: v or None if k.startswith(VERSION) else _value(v) for k, v in row.items()}
+                for row in csv.DictReader(fh)
+            ]
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise HosidInputError(f"cannot read {path}: {exc}") from None

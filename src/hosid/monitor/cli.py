@@ -50,6 +50,8 @@ def add_monitor_parser(sub) -> None:
     )
     for flag, dest, where, kwargs in _flags():
         if "fit" in where and flag not in _SKIP:
+            if flag == "--model":  # the batch's help names diagnose's base model too
+                kwargs = {**kwargs, "help": "linear, paper (default) or term names"}
             p.add_argument(flag, dest=dest, default=argparse.SUPPRESS, **kwargs)
     p.add_argument(
         "--alpha",

@@ -26,16 +26,16 @@ def plot_tracks(tracks, changes):
     """One panel per parameter: window means at the window centres with their 5-95 %
     band, the level before the first change (dashed), each named change (a line at its
     time, its interval shaded, the level after it), failed windows as red crosses.
-    """
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Returns a new :class:`matplotlib.figure.Figure`, made without ``pyplot`` (as
+    :mod:`hosid.output.plots`): the caller's backend and figure registry stay as they are.
+    """
+    from matplotlib.figure import Figure  # no pyplot: the session's backend stays
 
     params = list(tracks.values)
     n = max(len(params), 1)
-    fig, axes = plt.subplots(n, 1, figsize=(9, 1.9 * n + 0.8), sharex=True, squeeze=False)
-    axes = axes[:, 0]
+    fig = Figure(figsize=(9, 1.9 * n + 0.8))
+    axes = fig.subplots(n, 1, sharex=True, squeeze=False)[:, 0]
     span = float(tracks.end.max() - tracks.start.min()) if tracks.start.size else 1.0
     unit, label = _time_unit(span)
     mid = (tracks.start + tracks.end) / 2 / unit
@@ -80,11 +80,7 @@ def _num(value, digits: int = 4) -> str:
 
 def write_report(stage: Path, tracks, changes, *, settings, alpha, level) -> list[Path]:
     """``tracks.png`` and ``report.html`` into ``stage``."""
-    import matplotlib.pyplot as plt
-
-    fig = plot_tracks(tracks, changes)
-    image = png(fig)
-    plt.close(fig)
+    image = png(plot_tracks(tracks, changes))
     fig_path = write_atomic(stage / "tracks.png", image)
     windows = [
         {

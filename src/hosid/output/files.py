@@ -104,21 +104,34 @@ def write_atomic(path: Path, data: bytes | str) -> Path:
 
 
 def _lock(out: Path, command: str):
-    """Hold an exclusive, non-blocking ``flock`` on ``out/.hosid.lock`` or raise."""
+    """Hold an exclusive, non-blocking ``flock`` on ``out/.hosid.lock`` or raise.
+
+    A command removes the file before it lets go of it (:func:`locked_dir`): a lock
+    taken on a file no longer at the path is dropped and the path's new file locked.
+    """
     path = out / LOCK_NAME
-    try:
-        fh = open(path, "a+")  # held until the command ends
-    except OSError as exc:
-        raise HosidInputError(f"cannot write into {out}: {exc.strerror or exc}") from None
-    try:
-        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        fh.seek(0)
-        holder = fh.read().strip() or "another hosid command"
-        fh.close()
-        raise HosidInputError(
-            f"{out} is in use by {holder}; wait for it to finish or choose another --out"
-        ) from None
+    for _ in range(100):
+        try:
+            fh = open(path, "a+")  # held until the command ends
+        except OSError as exc:
+            raise HosidInputError(f"cannot write into {out}: {exc.strerror or exc}") from None
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.seek(0)
+            holder = fh.read().strip() or "another hosid command"
+            fh.close()
+            raise HosidInputError(
+                f"{out} is in use by {holder}; wait for it to finish or choose another --out"
+            ) from None
+        try:
+            if os.stat(path).st_ino == os.fstat(fh.fileno()).st_ino:
+                break
+        except FileNotFoundError:
+            pass
+        fh.close()  # the file of a command that just ended: lock the path's own
+    else:  # pragma: no cover - commands starting and ending on the folder without pause
+        raise HosidInputError(f"{out} is in use by other hosid commands; try again")
     fh.seek(0)
     fh.truncate()
     fh.write(f"'{command}' (pid {os.getpid()})")
@@ -149,10 +162,11 @@ def _commit(stage: Path, out: Path, command: str, keep: tuple[str, ...] = ()) ->
 @contextmanager
 def locked_dir(path: str | Path, *, command: str) -> Iterator[Path]:
     """Create ``path`` if needed and hold its lock while the block runs (a second command
-    on the folder stops at once); a folder created here is removed again when the block
-    raises and left nothing in it (a chain to resume from stays).  :func:`output_dir`
-    builds on it; commands that write many results one by one (``hosid batch``) use it
-    directly with :func:`write_atomic`.
+    on the folder stops at once; the lock file ``.hosid.lock`` is removed when the block
+    ends); a folder created here is removed again when the block raises and left nothing
+    in it (a chain to resume from stays).  :func:`output_dir` builds on it; commands that
+    write many results one by one (``hosid batch``) use it directly with
+    :func:`write_atomic`.
 
     Raises
     ------
@@ -179,6 +193,10 @@ def locked_dir(path: str | Path, *, command: str) -> Iterator[Path]:
         # a folder made here goes again on failure, unless something to resume from is in it
         if created and not ok and {p.name for p in out.iterdir()} <= {LOCK_NAME}:
             shutil.rmtree(out, ignore_errors=True)
+        try:  # the lock file goes while it is held; then the lock
+            (out / LOCK_NAME).unlink(missing_ok=True)
+        except OSError:
+            pass
         fh.close()
 
 

@@ -11,18 +11,20 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import xarray as xr
-from matplotlib.figure import Figure
 
-from . import plots, spectrum_plots
 from .files import b64, make_dir, png, render, write_atomic
+from .labels import fit_title, known_truths, length_unit, unit
 from .results import ESS_MIN, RHAT_MAX, attr, jsonable, stored_model, summarize
 
-__all__ = ["CAPTIONS", "COLUMNS", "figures", "write_report"]
+if TYPE_CHECKING:  # pragma: no cover - matplotlib loads with the first figure
+    from matplotlib.figure import Figure
+
+__all__ = ["CAPTIONS", "COLUMNS", "STEMS", "draw", "figures", "write_report"]
 
 #: Columns of the posterior table, in order (``summarize`` keys).
 COLUMNS = ("mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk")
@@ -37,14 +39,23 @@ _PROVENANCE = (
     "inference_library_version",
 )
 
-_PLOTS: dict[str, Callable[[xr.DataTree], Figure | None]] = {
-    "corner": plots.corner_plot,
-    "likelihood_map": plots.likelihood_map_plot,
-    "restoring_force": plots.restoring_force_plot,
-    "trace": plots.trace_plot,
-    "spectrum": spectrum_plots.spectrum_plot,
-    "force_spectrum": spectrum_plots.force_spectrum_plot,
-}
+#: The report's figures by file stem, in the page's order.
+STEMS = ("corner", "likelihood_map", "restoring_force", "trace", "spectrum", "force_spectrum")
+
+
+def _plots() -> dict[str, Callable[[xr.DataTree], Figure | None]]:
+    """The plotting function of each stem (imported here: the page needs no matplotlib)."""
+    from . import plots, spectrum_plots
+
+    return {
+        "corner": plots.corner_plot,
+        "likelihood_map": plots.likelihood_map_plot,
+        "restoring_force": plots.restoring_force_plot,
+        "trace": plots.trace_plot,
+        "spectrum": spectrum_plots.spectrum_plot,
+        "force_spectrum": spectrum_plots.force_spectrum_plot,
+    }
+
 
 #: Caption of each figure, by file stem.
 CAPTIONS = {
@@ -90,10 +101,25 @@ def figures(tree: xr.DataTree) -> dict[str, Figure]:
         (when the model has stiffness), ``trace`` and ``spectrum``, in that order.
     """
     out = {}
-    for stem, plot in _PLOTS.items():
+    for stem, plot in _plots().items():
         fig = plot(tree)
         if fig is not None:
             out[stem] = fig
+    return out
+
+
+def draw(tree: xr.DataTree, stems: Iterable[str] = STEMS, *, dpi: int = 100) -> dict[str, bytes]:
+    """The PNG bytes of the figures ``stems`` of :func:`figures` that apply, by stem.
+
+    Each figure is drawn and encoded before the next is made (what
+    :mod:`hosid.output.render` runs in the processes that draw beside a fit).
+    """
+    plots = _plots()
+    out = {}
+    for stem in stems:
+        fig = plots[stem](tree)
+        if fig is not None:
+            out[stem] = png(fig, dpi)
     return out
 
 
@@ -127,12 +153,12 @@ def _pairs(data: Mapping[str, Any] | None) -> list[tuple[str, str]]:
 
 def _summary(tree: xr.DataTree) -> dict[str, Any]:
     """:func:`~hosid.output.results.summarize` with the fit's remaining attributes."""
-    length = plots.length_unit(tree)
+    length = length_unit(tree)
     out = summarize(tree, warn=False)
     calibration = out.get("calibration") or {}
     out.update(
         {
-            "units": {k: plots.unit(k, length) for k in out["parameters"]},
+            "units": {k: unit(k, length) for k in out["parameters"]},
             "length_unit": length,
             "hansen": calibration.get("hansen"),
             "sigma_v": attr(tree, "sigma_v"),
@@ -217,11 +243,11 @@ def _context(
     tree: xr.DataTree, summary: Mapping[str, Any], images: Mapping[str, bytes]
 ) -> dict[str, Any]:
     """Everything the template shows, formatted."""
-    truths = plots.known_truths(tree)
+    truths = known_truths(tree)
     timings = dict(summary.get("timings") or {})
     timings["total"] = summary.get("fit_seconds")
     return {
-        "title": plots.fit_title(tree),
+        "title": fit_title(tree),
         "summary": summary,
         "rhat_max": RHAT_MAX,
         "ess_min": ESS_MIN,
@@ -249,7 +275,13 @@ def _context(
     }
 
 
-def write_report(tree: xr.DataTree, out_dir: str | Path, *, dpi: int = 100) -> list[Path]:
+def write_report(
+    tree: xr.DataTree,
+    out_dir: str | Path,
+    *,
+    dpi: int = 100,
+    images: Callable[[], Mapping[str, bytes]] | None = None,
+) -> list[Path]:
     """Write the report of a fit into ``out_dir`` (created when missing).
 
     Files: ``report.html`` (self-contained: convergence and calibration banner,
@@ -266,6 +298,10 @@ def write_report(tree: xr.DataTree, out_dir: str | Path, *, dpi: int = 100) -> l
         Output directory; existing files of the same names are replaced.
     dpi : int
         Resolution of the PNG figures.
+    images : callable, optional
+        Called once the summary is made, returns the figures' PNG bytes by stem (those
+        of :func:`draw`, drawn meanwhile by
+        :class:`~hosid.output.render.FigureProcesses`); default: :func:`draw` here.
 
     Returns
     -------
@@ -279,11 +315,12 @@ def write_report(tree: xr.DataTree, out_dir: str | Path, *, dpi: int = 100) -> l
     """
     out_dir = make_dir(out_dir)
     summary = _summary(tree)
-    images = {stem: png(fig, dpi) for stem, fig in figures(tree).items()}
-    html = render("report.html.j2", **_context(tree, summary, images))
+    given = draw(tree, dpi=dpi) if images is None else images()
+    pngs = {stem: given[stem] for stem in STEMS if stem in given}
+    html = render("report.html.j2", **_context(tree, summary, pngs))
     files = {
         "report.html": html.encode("utf-8"),
         "summary.json": json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"),
-        **{f"{stem}.png": data for stem, data in images.items()},
+        **{f"{stem}.png": data for stem, data in pngs.items()},
     }
     return [write_atomic(out_dir / name, data) for name, data in files.items()]

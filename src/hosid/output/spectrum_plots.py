@@ -12,7 +12,8 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from ..model.excitation import Spectrum
-from .plots import _axes, _draws, _sigma_x, _thin, length_unit
+from .labels import length_unit
+from .plots import _axes, _draws, _sigma_x, _thin
 from .results import attr, stored_model
 
 __all__ = ["force_spectrum_plot", "spectrum_plot"]
