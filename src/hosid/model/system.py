@@ -103,7 +103,8 @@ class System:
     driven : sequence of str, optional
         The dofs with a white force (default all).
     measured : str or mapping, optional
-        ``"displacement"`` (default) or ``"acceleration"``, for all channels or by dof.
+        ``"displacement"`` or ``"acceleration"``, for all channels or by dof; stored as
+        one kind or ``None`` (undeclared: the record's file says) a dof.
     values : mapping, optional
         Parameter values by name (a simulation's truth); stored as ``(name, value)``
         pairs in :attr:`param_names` order (``dict(system.values)``).
@@ -190,6 +191,13 @@ class System:
         return read_system(path)
 
     # --------------------------------------------------------------- structure
+    @property
+    def declared(self) -> dict[str, str]:
+        """What the declared channels measure, by dof (for
+        :meth:`hosid.record.Record.select`, which checks them against the record's file).
+        """
+        return {d: k for d, k in zip(self.dofs, self.measured, strict=True) if k is not None}
+
     @property
     def n(self) -> int:
         """Number of degrees of freedom."""
