@@ -226,6 +226,32 @@ class System:
         """Position of parameter ``name`` in ``theta``."""
         return self.param_names.index(name)
 
+    def has(self, name: str) -> bool:
+        """Whether ``name`` is a parameter of the system."""
+        return name in self.param_names
+
+    @property
+    def log_params(self) -> list[int]:
+        """Parameters handled in their logarithm: the unknown masses and the levels."""
+        return [i for i, n in enumerate(self.param_names) if n.startswith(("mass[", "S0"))]
+
+    def default_priors(self, scales, *, constrained: bool = True):
+        """Every parameter's default prior from the record's
+        :class:`~hosid.model.system_priors.SystemScales`; with ``constrained`` eq (65)
+        per damped element (:mod:`hosid.model.system_priors`).
+        """
+        from .system_priors import system_priors
+
+        return system_priors(self, scales, constrained=constrained)
+
+    def describe(self) -> dict:
+        """The system as plain data (a fit's ``system`` attribute)."""
+        elements = [{"between": list(e.between), "terms": [t.name for t in e.terms]}
+                    for e in self.elements]  # fmt: skip
+        masses = dict(zip(self.dofs, self.masses, strict=True))
+        return {"dofs": list(self.dofs), "elements": elements, "masses": masses,
+                "driven": list(self.driven), "measured": self.declared}  # fmt: skip
+
     @property
     def incidence(self) -> np.ndarray:
         """:math:`B`, ``(n_elements, n)``: +1 at an element's second end, -1 at its first."""

@@ -134,6 +134,9 @@ class Integration:
     band: Band
     boxcar: bool
     n_segments: int
+    #: the velocity's spectral derivative: the acceleration in the band with the interval
+    #: average's sinc undone (what a displacement record's second derivative would be)
+    corrected: np.ndarray | None = None
 
     @property
     def omega_low(self) -> float:
@@ -291,7 +294,7 @@ def integrate_acceleration(
                 f"{band.omega_nyquist:.4g} rad/s, got {omega_low!r}"
             )
         band = dataclasses.replace(band, omega_low=float(omega_low))
-    x, v, acc = (np.zeros_like(a) for _ in range(3))
+    x, v, acc, corrected = (np.zeros_like(a) for _ in range(4))
     for s, b in bounds:
         n = b - s
         w = 2.0 * math.pi * np.fft.rfftfreq(n, dt)
@@ -305,4 +308,5 @@ def integrate_acceleration(
         x[s:b] = np.fft.irfft(V / (1j * np.where(keep, w, 1.0)), n)
         v[s:b] = np.fft.irfft(V, n)
         acc[s:b] = np.fft.irfft(A, n)
-    return Integration(x, v, acc, band, bool(boxcar), len(bounds))
+        corrected[s:b] = np.fft.irfft(A / np.where(keep, gain, 1.0), n)
+    return Integration(x, v, acc, band, bool(boxcar), len(bounds), corrected)

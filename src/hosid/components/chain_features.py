@@ -1,0 +1,226 @@
+r"""What a system's components share: its elements' motion, features and restorations.
+
+For a system of :mod:`hosid.model.system` on the state of its record
+(:class:`hosid.chain_state.ChainState`), element :math:`e` sees the relative motion
+:math:`r_e = (Bq)_e` and :math:`\dot r_e`, and drift coefficient :math:`c` of element
+:math:`e_c` the feature :math:`\varphi_c(r_{e_c})` or :math:`\varphi_c(\dot r_{e_c})`;
+the inferred force of dof :math:`d` (eq 45 with indices) is
+
+.. math:: X_d = m_d\ddot q_d + \sum_cB_{e_cd}\,\varphi_c\,\theta_c
+    = \lambda_d^{\mathsf T}Y_d, \qquad \lambda_d = (m_d, \theta_{c\in d}),
+    \quad Y_d = (\ddot q_d, B_{e_cd}\varphi_c)_{c\in d},
+
+over the coefficients :math:`c \in d` of the elements that touch :math:`d`.
+
+**Restoration.**  What the sampled state lacks is nearly independent of what it holds,
+so a statistic :math:`h` of the state is restored as :math:`h + \tfrac12\mathrm{tr}(C\,
+\nabla^2h)` with :math:`C` the covariance of the missing part (:class:`Restoration`):
+
+- above the Nyquist frequency, the velocity of a *displacement* channel of a driven dof
+  lacks :math:`s_d^2 = \pi^2S_{0,d}/(6m_d^2\omega_N)` (:func:`hosid.state.velocity_deficit`
+  of the acceleration's level :math:`S_{0,d}/m_d^2`), independently across dofs (the
+  forces are), so the relative velocities lack :math:`S^v = B\,\mathrm{diag}(s^2)B^{\mathsf
+  T}`; an acceleration channel holds that power as aliases (:mod:`hosid.chain_state`), an
+  undriven dof's velocity is smooth: both lack none;
+- below the band :math:`\omega_{L,d}` of an *acceleration* channel the displacement lacks
+  its static response: with the equivalent linear stiffness :math:`k_e = \sum_{c\in e}
+  \theta_cE[\varphi_c'(r_e)]` of the elements' restoring terms and :math:`K =
+  B^{\mathsf T}\mathrm{diag}(k)B`, the displacement spectrum at zero frequency is
+  :math:`S_{qq}(0) = K^{-1}\mathrm{diag}(S_0)K^{-1}` and the missing covariance
+  :math:`C^q_{dd'} = 2\min(\omega_{L,d}, \omega_{L,d'})S_{qq,dd'}(0)` (0 where either
+  channel is a displacement), :math:`C^r = BC^qB^{\mathsf T}` for the elements (the
+  velocity's share below :math:`\omega_L`, :math:`\tfrac23\omega_L^3S_{qq}(0)`, is left out).
+
+A velocity feature is restored exactly where its term knows how
+(:meth:`hosid.model.base.DriftTerm.smoothed`); generalized functions are regularized at
+:math:`\epsilon_e = \max(\sqrt{S^v_{ee}}, 0.05\,\sigma_{\dot r_e})`.  For the one-element
+chain all of this is the single oscillator's (:mod:`hosid.components.base`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..chain_state import ChainState
+from ..model.system import System
+from ..spectra.derivatives import velocity_deficit
+
+__all__ = [
+    "Restoration",
+    "column_blocks",
+    "dof_columns",
+    "force_ffts",
+    "lam",
+    "relative",
+    "restoration",
+    "shape",
+    "system_scales",
+]
+
+
+def _key(system: System) -> bytes:
+    return system.incidence.tobytes()
+
+
+def relative(state: ChainState, system: System, blocks: bool = False):
+    r""":math:`(r, \dot r)` of every element, each ``(E, N)`` (or ``(E, B, M)`` with
+    ``blocks``), computed once per state.
+    """
+
+    def make():
+        B = system.incidence
+        r, rd = B @ state.q, B @ state.v
+        if system.n == 1:  # the single oscillator: the displacement itself
+            r, rd = state.q.copy(), state.v.copy()
+        return r, rd, state.layout.take(r), state.layout.take(rd)
+
+    got = state.cached(("relative", _key(system)), make)
+    return got[2:] if blocks else got[:2]
+
+
+@dataclass(frozen=True)
+class Restoration:
+    """The covariances of what the sampled state lacks (module docstring): ``s2`` per
+    dof, ``low`` ``(n, n)``, and per element ``Sv``, ``Cr`` ``(E, E)`` and the widths
+    ``eps`` and relative velocity sds ``sd`` ``(E,)``.
+    """
+
+    s2: np.ndarray
+    low: np.ndarray
+    Sv: np.ndarray
+    Cr: np.ndarray
+    eps: np.ndarray
+    sd: np.ndarray
+
+    @property
+    def velocity_sd(self) -> np.ndarray:
+        r"""Restored sd of each element's relative velocity (eq 65's :math:`\sigma`)."""
+        return np.sqrt(self.sd**2 + np.diag(self.Sv))
+
+
+def restoration(state: ChainState, system: System, theta: np.ndarray) -> Restoration:
+    """The restoration at ``theta`` (module docstring)."""
+    th = np.asarray(theta, dtype=float)
+    m, S0 = system.mass_vector(th), system.levels(th)
+    n = system.n
+    s2 = np.zeros(n)
+    for d, ch in enumerate(state.channels):
+        if ch.kind == "displacement" and S0[d] > 0:
+            s2[d] = float(velocity_deficit(float(S0[d] / m[d] ** 2), state.dt))
+    low = np.zeros((n, n))
+    omega_low = np.array([c.omega_low for c in state.channels])
+    if np.any(omega_low > 0):
+        low = 2.0 * np.minimum.outer(omega_low, omega_low) * _static(state, system, th)
+    B = system.incidence
+    _, rd = relative(state, system)
+    sd = rd.std(axis=1)
+    Sv = (B * s2) @ B.T
+    eps = np.maximum(np.sqrt(np.maximum(np.diag(Sv), 0.0)), 0.05 * sd)
+    return Restoration(s2, low, Sv, B @ low @ B.T, eps, sd)
+
+
+def _static(state: ChainState, system: System, th: np.ndarray) -> np.ndarray:
+    r""":math:`S_{qq}(0) = K^{-1}\mathrm{diag}(S_0)K^{-1}` of the equivalent linear
+    stiffness (module docstring).
+    """
+    r, _ = relative(state, system)
+    k = np.zeros(len(system.elements))
+    for c, (e, t) in enumerate(system.columns):
+        if t.variable == "x":
+            k[e] += th[c] * float(np.mean(t.phi(r[e], 1)))
+    B = system.incidence
+    K = (B.T * k) @ B
+    try:
+        Ki = np.linalg.inv(K)
+    except np.linalg.LinAlgError:
+        return np.zeros((system.n, system.n))
+    return Ki @ np.diag(system.levels(th)) @ Ki.T
+
+
+def column_blocks(state: ChainState, system: System, c: int, rest: Restoration) -> np.ndarray:
+    r"""Coefficient ``c``'s feature on the blocks, ``(B, M)``, restored (module
+    docstring): :math:`E[\varphi(\dot r + s Z)]` for a velocity feature, :math:`\varphi(r)
+    + \tfrac12C^r_{ee}\varphi''(r)` for a displacement feature.
+    """
+    e, t = system.columns[c]
+    rb, rdb = relative(state, system, blocks=True)
+    if t.variable == "v":
+        return t.smoothed(rdb[e], float(rest.Sv[e, e]), float(rest.eps[e]))
+    out = t.phi(rb[e])
+    if rest.Cr[e, e] > 0 and t.variable == "x":
+        out = out + 0.5 * rest.Cr[e, e] * t.phi(rb[e], 2)
+    return out
+
+
+def dof_columns(system: System, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """The coefficients in dof ``d``'s equation and their signs :math:`B_{e_cd}`."""
+    B = system.incidence
+    sign = np.array([B[e, d] for e, _ in system.columns])
+    cols = np.flatnonzero(sign != 0)
+    return cols, sign[cols]
+
+
+def force_ffts(
+    state: ChainState, system: System, d: int, rest: Restoration, bins: np.ndarray, window=None
+) -> np.ndarray:
+    r"""Block transforms of :math:`Y_d` (module docstring), ``(1 + |c \in d|, B, K)``,
+    with the state's window or ``window``; cached per feature and restoration.
+    """
+    cols, sign = dof_columns(system, d)
+    rows = [state.block_fft(("a", d), lambda b: b["a"][d], bins, window)]
+    for c, s in zip(cols, sign, strict=True):
+        e, t = system.columns[c]
+        spread = rest.Sv[e, e] if t.variable == "v" else rest.Cr[e, e]
+        key = ("column", _key(system), int(c), round(float(spread), 12), state.centred)
+        Y = state.block_fft(key, lambda b, c=c: column_blocks(state, system, c, rest), bins,
+                            window)  # fmt: skip
+        rows.append(Y if s == 1.0 else s * Y)
+    return np.stack(rows)
+
+
+def lam(system: System, theta: np.ndarray, d: int) -> np.ndarray:
+    r""":math:`\lambda_d(\theta) = (m_d, \theta_{c\in d})`, ``(..., 1 + |c \in d|)``."""
+    th = np.asarray(theta, dtype=float)
+    cols, _ = dof_columns(system, d)
+    m = system.masses[d]
+    mass = np.full((*th.shape[:-1], 1), m) if m is not None else None
+    if mass is None:
+        mass = system.mass_vector(th)[..., d : d + 1]
+    return np.concatenate([mass, th[..., cols]], axis=-1)
+
+
+def shape(state: ChainState, d: int, omega: np.ndarray) -> np.ndarray | None:
+    r"""How the force of dof ``d`` is seen on ``omega``: ``None`` (flat) for a
+    displacement channel, :math:`1/\mathrm{sinc}^2(\omega\Delta t/2)` for an acceleration
+    channel (its acceleration is the interval average with the sinc undone, so its white
+    part, flat before, rises by it).
+    """
+    if state.channels[d].kind == "displacement":
+        return None
+    return 1.0 / np.sinc(omega * state.dt / (2.0 * math.pi)) ** 2
+
+
+def system_scales(state: ChainState, system: System, sigma_v=None):
+    """The record's :class:`~hosid.model.system_priors.SystemScales`: per element its
+    relative motion's sds (``sigma_v``, the elements' restored velocity sds, replaces the
+    sampled ones when given), per dof its acceleration's rough level.
+    """
+    from dataclasses import replace
+
+    from ..model.system_priors import SystemScales
+    from ..model.terms import Scales
+
+    r, rd = relative(state, system)
+    out = []
+    for e, el in enumerate(system.elements):
+        ch = state.channels[system.dofs.index(el.between[1])]
+        s = ch.scales
+        if system.n > 1:
+            s = Scales(float(np.std(r[e])), float(np.std(rd[e])), s.S0, s.dt, s.band_edge)
+        if sigma_v is not None:
+            s = replace(s, sigma_v=float(np.asarray(sigma_v)[e]))
+        out.append(s)
+    return SystemScales(tuple(out), tuple(c.scales.S0 for c in state.channels))
