@@ -26,6 +26,7 @@ from hosid.errors import (
     HosidInputError,
     RecordRejected,
 )
+from hosid.system_commands import add_system_options
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
@@ -69,7 +70,8 @@ def _analysis_options(p: argparse.ArgumentParser) -> None:
         "--model",
         default="paper",
         metavar="MODEL",
-        help="linear, paper, or comma-separated term names; default paper",
+        help="linear, paper, comma-separated term names, or a system file (.toml: several "
+        "degrees of freedom, the record's channels); default paper",
     )
     _shape_option(p)
     p.add_argument(
@@ -197,6 +199,7 @@ def _add_simulate(sub) -> None:
             metavar="V",
             help=f"{name} after the change (with --change-at); default unchanged",
         )
+    add_system_options(sim)
     sim.add_argument("--duration", type=positive, default=2000.0, help="seconds, default 2000")
     sim.add_argument("--dt", type=positive, default=0.02, help="seconds, default 0.02")
     sim.add_argument("--seed", type=integer(0), default=0, help="default 0")

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -54,6 +55,7 @@ __all__ = [
     "dof_columns",
     "force_ffts",
     "lam",
+    "places",
     "relative",
     "restoration",
     "shape",
@@ -181,15 +183,60 @@ def force_ffts(
     return np.stack(rows)
 
 
+@dataclass(frozen=True)
+class Places:
+    """Where a system's masses, levels and each dof's force coefficients sit in
+    ``theta`` (:func:`places`): what the components' means read at every evaluation.
+    """
+
+    fixed: np.ndarray  # (n,) the known masses (1 where unknown)
+    free: np.ndarray  # dofs with an unknown mass
+    i_mass: np.ndarray  # their positions in theta
+    driven: np.ndarray  # driven dofs
+    i_S0: np.ndarray  # their levels' positions
+    cols: tuple[np.ndarray, ...]  # per dof, its equation's coefficients
+
+    def masses(self, th: np.ndarray) -> np.ndarray:
+        """:math:`m`, ``(..., n)``."""
+        m = np.broadcast_to(self.fixed, (*th.shape[:-1], self.fixed.size)).copy()
+        m[..., self.free] = th[..., self.i_mass]
+        return m
+
+    def levels(self, th: np.ndarray) -> np.ndarray:
+        r""":math:`S_{0,d}`, ``(..., n)`` (0 undriven)."""
+        out = np.zeros((*th.shape[:-1], self.fixed.size))
+        out[..., self.driven] = th[..., self.i_S0]
+        return out
+
+    def mass(self, th: np.ndarray, d: int) -> np.ndarray:
+        """:math:`m_d`, ``(..., 1)``."""
+        if d in self.free:
+            return th[..., self.i_mass[list(self.free).index(d)], None]
+        return np.full((*th.shape[:-1], 1), self.fixed[d])
+
+
+@lru_cache(maxsize=64)
+def places(system: System) -> Places:
+    """The :class:`Places` of ``system`` (made once per system)."""
+    names = system.param_names
+    free = [d for d, m in enumerate(system.masses) if m is None]
+    driven = [system.dofs.index(x) for x in system.driven]
+    s0 = ["S0" if system.single_names else f"S0[{system.dofs[d]}]" for d in driven]
+    return Places(
+        fixed=np.array([1.0 if m is None else m for m in system.masses]),
+        free=np.array(free, dtype=int),
+        i_mass=np.array([names.index(f"mass[{system.dofs[d]}]") for d in free], dtype=int),
+        driven=np.array(driven, dtype=int),
+        i_S0=np.array([names.index(n) for n in s0], dtype=int),
+        cols=tuple(dof_columns(system, d)[0] for d in range(system.n)),
+    )
+
+
 def lam(system: System, theta: np.ndarray, d: int) -> np.ndarray:
     r""":math:`\lambda_d(\theta) = (m_d, \theta_{c\in d})`, ``(..., 1 + |c \in d|)``."""
     th = np.asarray(theta, dtype=float)
-    cols, _ = dof_columns(system, d)
-    m = system.masses[d]
-    mass = np.full((*th.shape[:-1], 1), m) if m is not None else None
-    if mass is None:
-        mass = system.mass_vector(th)[..., d : d + 1]
-    return np.concatenate([mass, th[..., cols]], axis=-1)
+    pl = places(system)
+    return np.concatenate([pl.mass(th, d), th[..., pl.cols[d]]], axis=-1)
 
 
 def shape(state: ChainState, d: int, omega: np.ndarray) -> np.ndarray | None:

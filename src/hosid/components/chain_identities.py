@@ -59,9 +59,9 @@ import numpy as np
 from ..chain_state import ChainState
 from ..model.system import System
 from .base import Moments
-from .chain_features import Restoration, relative, restoration
+from .chain_features import Restoration, places, relative, restoration
 
-__all__ = ["ChainIdentities", "Row", "rows"]
+__all__ = ["ChainIdentities", "Row", "combine", "rows"]
 
 
 @dataclass(frozen=True)
@@ -192,37 +192,20 @@ class ChainIdentities:
         th0 = np.asarray(pilot, dtype=float)
         rest = restoration(state, system, th0)
         P, const, e_, rws = self.statistics(state, system, rest)
-        nd, n = system.n_drift, system.n
-        B = system.incidence
-        Bcols = np.stack([B[e] for e, _ in system.columns], axis=-1)  # (n, p)
-        g = np.array([w.g for w in rws])  # (A, n)
-        T3 = g.T[:, :, None] * Bcols[:, None, :]  # (n, A, p): g_ad B_{e_c d}
-        G2 = np.where(np.array([w.kind == "v" for w in rws])[:, None], g**2, 0.0).T  # (n, A)
-        Pm, cm, em = P.mean(0), const.mean(0), e_.mean(0)
-        Z = T3 * Pm[None]  # (n, A, p)
-        single = n == 1
-
-        def mean(theta):
-            th = np.asarray(theta, dtype=float)
-            S0 = system.levels(th)  # (..., n)
-            if single:
-                return cm + th[..., :nd] @ Pm.T - (math.pi * S0) @ G2 * em
-            mu = 1.0 / system.mass_vector(th)
-            U = np.einsum("...c,dac->...da", th[..., :nd], Z)
-            diff = (math.pi * S0 * mu**2) @ G2
-            return cm + np.einsum("...d,...da->...a", mu, U) - diff * em
-
-        mu0 = 1.0 / system.mass_vector(th0)
-        if single:  # the single oscillator's arithmetic, to the last digit
+        nd = system.n_drift
+        mean = combine(system, rws, P.mean(0), const.mean(0), e_.mean(0))
+        T3, G2 = _weights(system, rws)
+        if system.n == 1:  # the single oscillator's arithmetic, to the last digit
             drift = np.einsum("bjk,k->bj", P, th0[:nd])
             per_block = const + drift - math.pi * float(system.levels(th0)[0]) * e_
         else:
+            mu0 = 1.0 / system.mass_vector(th0)
             diff0 = (math.pi * system.levels(th0) * mu0**2) @ G2
             drift = np.einsum("d,dac,bac,c->ba", mu0, T3, P, th0[:nd])
             per_block = const + drift - diff0 * e_
         labels = tuple(_label(system, w) for w in rws)
-        s2 = float(rest.s2[0]) if single else dict(zip(system.dofs, rest.s2.tolist(),
-                                                       strict=True))  # fmt: skip
+        s2 = float(rest.s2[0]) if system.n == 1 else dict(zip(system.dofs, rest.s2.tolist(),
+                                                              strict=True))  # fmt: skip
         return Moments(
             component=self.name,
             labels=labels,
@@ -230,6 +213,46 @@ class ChainIdentities:
             influence=per_block - per_block.mean(axis=0),
             info={"velocity_restoration_s2": s2, "identities": list(labels)},
         )
+
+
+def _weights(system: System, rws: list[Row]) -> tuple[np.ndarray, np.ndarray]:
+    r""":math:`g_{ad}B_{e_cd}` ``(n, A, p)`` and the diffusion's :math:`g_{ad}^2` of the
+    velocity rows ``(n, A)``.
+    """
+    B = system.incidence
+    Bcols = np.stack([B[e] for e, _ in system.columns], axis=-1)  # (n, p)
+    g = np.array([w.g for w in rws])  # (A, n)
+    T3 = g.T[:, :, None] * Bcols[:, None, :]
+    G2 = np.where(np.array([w.kind == "v" for w in rws])[:, None], g**2, 0.0).T
+    return T3, G2
+
+
+def combine(system: System, rws: list[Row], Pm: np.ndarray, cm: np.ndarray, em: np.ndarray):
+    r"""The identities' means as a function of :math:`\theta`, ``(..., p) -> (..., A)``.
+
+    From their statistics (:meth:`ChainIdentities.statistics`, block-averaged, or the
+    population's),
+
+    .. math:: m_a(\theta) = \bar c_a + \sum_d\mu_d\sum_cg_{ad}B_{e_cd}\bar P_{ac}\theta_c
+        - \sum_d\pi S_{0,d}\mu_d^2g_{ad}^2\,\bar e_a.
+    """
+    nd = system.n_drift
+    T3, G2 = _weights(system, rws)
+    Z = T3 * Pm[None]  # (n, A, p)
+    single = system.n == 1
+    pl = places(system)
+
+    def mean(theta):
+        th = np.asarray(theta, dtype=float)
+        S0 = pl.levels(th)  # (..., n)
+        if single:
+            return cm + th[..., :nd] @ Pm.T - (math.pi * S0) @ G2 * em
+        mu = 1.0 / pl.masses(th)
+        U = np.einsum("...c,dac->...da", th[..., :nd], Z)
+        diff = (math.pi * S0 * mu**2) @ G2
+        return cm + np.einsum("...d,...da->...a", mu, U) - diff * em
+
+    return mean
 
 
 def _label(system: System, w: Row) -> str:

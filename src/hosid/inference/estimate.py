@@ -70,7 +70,7 @@ from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
 from .maps import likelihood_map
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
-from .settle import settled_term, white_limit
+from .settle import settled_note, settled_term, white_limit
 from .solutions import alternatives, select_solution
 
 __all__ = [
@@ -260,7 +260,8 @@ def estimate(
     A :class:`~hosid.record.Record` is checked first (:func:`hosid.screen.check_record`);
     ``force`` estimates a record that fails a check anyway, ``unit`` names the
     displacement's unit in the checks' messages, ``checks`` passes the record's checks
-    when the caller already made them.  With ``impulsive_excitation`` and fewer than one
+    when the caller already made them; an acceleration record is the one-element chain's.
+    With ``impulsive_excitation`` and fewer than one
     impulse a sample, the estimate is corrected for its sampling bias by ``simulations``
     records of the model a step (:mod:`hosid.inference.correction`; 0: not; their seed
     is fixed by the record's samples), with a progress bar when ``progress``.
@@ -273,11 +274,15 @@ def estimate(
     HosidInputError
         If the record is too short, constant, or not described by the model.
     """
+    if not isinstance(model, System) and getattr(record, "measured", ()) == ("acceleration",):
+        record = Record(record.x, record.dt, record.name, record.segments, ("x",), record.measured)
+        model = System.single(model)
     if isinstance(model, System):  # a system's own state, pilot and components
         from .system_estimate import estimate_system
 
+        default = components is None or list(components) == components_for()
         return estimate_system(
-            record, model, components, start=start, rounds=rounds,
+            record, model, None if default else components, start=start, rounds=rounds,
             block_seconds=block_seconds, force=force, unit=unit, checks=checks,
         )  # fmt: skip
     model = Model.from_spec(model)
@@ -337,10 +342,10 @@ def estimate(
                 force=force, unit=unit, checks=checks, simulations=simulations,
                 progress=progress,
             )  # fmt: skip
-            est.notes.append(_settled_note(test, kept=False))
+            est.notes.append(settled_note(test, kept=False))
             est.excitation_test = test
             return est
-        notes.append(_settled_note(test, kept=True))
+        notes.append(settled_note(test, kept=True))
     J_best = float(-2.0 * ql(theta))
     solutions = [t for t, _, _ in found]
     # the impulses' sampling bias (.correction), where single impulses show: fewer than
@@ -366,17 +371,6 @@ def estimate(
         model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others,
         test,
     )  # fmt: skip
-
-
-def _settled_note(test: dict, *, kept: bool) -> str:
-    """What :mod:`hosid.inference.settle` found, in a sentence."""
-    found = f"D = {test['D']:.3g} on {test['reference']}, p = {test['p_value']:.2g}"
-    if kept:
-        return f"{test['effect']}: the record rejects a white force ({found})"
-    return (
-        f"{test['effect']} asked for, but the record does not reject a white force ({found} "
-        f">= {test['level']:g}): the white model is fitted (hosid.inference.settle)"
-    )
 
 
 def _solve_rounds(state, model, components, theta, rounds, logs, lower, upper):

@@ -49,6 +49,7 @@ import math
 import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -203,17 +204,26 @@ class System:
         """Number of degrees of freedom."""
         return len(self.dofs)
 
-    @property
+    @cached_property
     def columns(self) -> tuple[tuple[int, DriftTerm], ...]:
         """(element index, term) of every drift coefficient, in :attr:`param_names` order."""
         return tuple((k, t) for k, e in enumerate(self.elements) for t in e.terms)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The terms as a model names them: ``"x1-x2: linear_damping + linear_stiffness"``
+        an element (the one-element chain's: its term names and ``excitation_level``).
+        """
+        if self.single_names:
+            return (*(t.name for t in self.elements[0].terms), "excitation_level")
+        return tuple(f"{e.label}: {' + '.join(t.name for t in e.terms)}" for e in self.elements)
 
     @property
     def n_drift(self) -> int:
         """Number of drift coefficients (``theta[:n_drift]``)."""
         return len(self.columns)
 
-    @property
+    @cached_property
     def param_names(self) -> tuple[str, ...]:
         """Parameter names in order: the layout of ``theta`` (module docstring)."""
         if self.single_names:
