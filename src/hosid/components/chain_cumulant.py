@@ -10,9 +10,10 @@ zero).  Per driven dof, with the block moments :math:`m_{2b} = \overline{X_d^2}`
     \frac{3}{B(B-1)}\sum_{b\ne b'}m_{2b}m_{2b'}\Big]
 
 has mean zero (blocks independent), whatever linear filter the sampling applies to the
-force (an acceleration channel's sinc undone leaves it Gaussian).  Both moments are
-polynomials in :math:`\lambda_d`, whose coefficient tensors are computed once.  For the
-one-element chain this is :class:`hosid.components.cumulant.ForceKurtosis` (white force).
+force (an acceleration channel's, the derivative of its velocity's samples, included).
+Both moments are polynomials in :math:`\lambda_d`, whose coefficient tensors are computed
+once.  For the one-element chain this is :class:`hosid.components.cumulant.ForceKurtosis`
+(white force).
 """
 
 from __future__ import annotations

@@ -22,14 +22,15 @@ so a statistic :math:`h` of the state is restored as :math:`h + \tfrac12\mathrm{
   forces are), so the relative velocities lack :math:`S^v = B\,\mathrm{diag}(s^2)B^{\mathsf
   T}`; an acceleration channel holds that power as aliases (:mod:`hosid.chain_state`), an
   undriven dof's velocity is smooth: both lack none;
-- below the band :math:`\omega_{L,d}` of an *acceleration* channel the displacement lacks
-  its static response: with the equivalent linear stiffness :math:`k_e = \sum_{c\in e}
-  \theta_cE[\varphi_c'(r_e)]` of the elements' restoring terms and :math:`K =
-  B^{\mathsf T}\mathrm{diag}(k)B`, the displacement spectrum at zero frequency is
-  :math:`S_{qq}(0) = K^{-1}\mathrm{diag}(S_0)K^{-1}` and the missing covariance
-  :math:`C^q_{dd'} = 2\min(\omega_{L,d}, \omega_{L,d'})S_{qq,dd'}(0)` (0 where either
-  channel is a displacement), :math:`C^r = BC^qB^{\mathsf T}` for the elements (the
-  velocity's share below :math:`\omega_L`, :math:`\tfrac23\omega_L^3S_{qq}(0)`, is left out).
+- an *acceleration* channel's displacement (:mod:`hosid.chain_state`) lacks its part
+  below the band's filter and holds the trapezoid rule's random walk: with the equivalent
+  linear stiffness :math:`k_e = \sum_{c\in e}\theta_cE[\varphi_c'(r_e)]` of the elements'
+  restoring terms and :math:`K = B^{\mathsf T}\mathrm{diag}(k)B`, the displacement
+  spectrum near zero frequency is :math:`S_{qq}(0) = K^{-1}\mathrm{diag}(S_0)K^{-1}`, and
+  :math:`C^q_{dd'} = 2\beta\min(\omega_{L,d}, \omega_{L,d'})S_{qq,dd'}(0) -
+  \delta_{dd'}\beta S_{0,d}\Delta t^2/(6m_d^2\omega_{L,d})` (0 where either channel is a
+  displacement; :math:`\beta = (\pi/8)/\sin(\pi/8)` of the filter, :data:`BUTTER`),
+  :math:`C^r = BC^qB^{\mathsf T}` for the elements.
 
 A velocity feature is restored exactly where its term knows how
 (:meth:`hosid.model.base.DriftTerm.smoothed`); generalized functions are regularized at
@@ -61,6 +62,12 @@ __all__ = [
     "shape",
     "system_scales",
 ]
+
+
+#: :math:`\int_0^\infty(1 - |H|^2)\,du = \int_0^\infty|H|^2u^{-2}\,du = (\pi/8)/\sin(\pi/8)`
+#: for the zero-phase fourth-order Butterworth high-pass :math:`|H|^2 = u^8/(1 + u^8)`,
+#: :math:`u = \omega/\omega_L` (:func:`hosid.spectra.integrate.integrate_in_time`).
+BUTTER = (math.pi / 8.0) / math.sin(math.pi / 8.0)
 
 
 def _key(system: System) -> bytes:
@@ -115,7 +122,9 @@ def restoration(state: ChainState, system: System, theta: np.ndarray) -> Restora
     low = np.zeros((n, n))
     omega_low = np.array([c.omega_low for c in state.channels])
     if np.any(omega_low > 0):
-        low = 2.0 * np.minimum.outer(omega_low, omega_low) * _static(state, system, th)
+        low = 2.0 * BUTTER * np.minimum.outer(omega_low, omega_low) * _static(state, system, th)
+        for d in np.flatnonzero(omega_low > 0):  # the trapezoid rule's random walk, in excess
+            low[d, d] -= BUTTER * S0[d] * state.dt**2 / (6.0 * m[d] ** 2 * omega_low[d])
     B = system.incidence
     _, rd = relative(state, system)
     sd = rd.std(axis=1)
@@ -241,13 +250,16 @@ def lam(system: System, theta: np.ndarray, d: int) -> np.ndarray:
 
 def shape(state: ChainState, d: int, omega: np.ndarray) -> np.ndarray | None:
     r"""How the force of dof ``d`` is seen on ``omega``: ``None`` (flat) for a
-    displacement channel, :math:`1/\mathrm{sinc}^2(\omega\Delta t/2)` for an acceleration
-    channel (its acceleration is the interval average with the sinc undone, so its white
-    part, flat before, rises by it).
+    displacement channel, :math:`\sum_j(\omega/(\omega + 2j\omega_N))^2` for an
+    acceleration channel, whose acceleration is the spectral derivative of the velocity's
+    samples: the force's white part, :math:`S_0/m^2\omega^2` in the velocity, folds into
+    the band and is multiplied by :math:`\omega^2` there.
     """
     if state.channels[d].kind == "displacement":
         return None
-    return 1.0 / np.sinc(omega * state.dt / (2.0 * math.pi)) ** 2
+    j = np.arange(-64, 65)
+    w = np.asarray(omega, dtype=float)[..., None]
+    return np.sum((w / (w + 2.0 * j * state.omega_nyquist)) ** 2, axis=-1)
 
 
 def system_scales(state: ChainState, system: System, sigma_v=None):

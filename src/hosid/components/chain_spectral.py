@@ -23,11 +23,12 @@ an undriven dof's force is zero.  Three components read it, each per driven dof
 - :class:`ChainLevel`: the level of each driven dof from every boxcar ordinate above
   the J2 band to :math:`0.9\,\omega_N`, :math:`|X_d|^2/(2\pi TS_{0,d}A_d(\omega))`
   with the channel's alias factor (:func:`hosid.components.level.alias_factor` for a
-  displacement, :math:`1/\mathrm{sinc}^2(\omega\Delta t/2)` for an acceleration);
+  displacement, :math:`\sum_j(\omega/(\omega + 2j\omega_N))^2` for an acceleration);
 - :class:`ChainKurtosis`: the fourth cumulant of each driven dof's force.
 
-:math:`L_d(\omega)` is 1 for a displacement channel and :math:`1/\mathrm{sinc}^2(\omega
-\Delta t/2)` for an acceleration channel (:func:`hosid.components.chain_features.shape`).
+:math:`L_d(\omega)` is 1 for a displacement channel and the acceleration's aliases
+:math:`\sum_j(\omega/(\omega + 2j\omega_N))^2` for an acceleration channel
+(:func:`hosid.components.chain_features.shape`).
 The J2 band runs from bin 2 (and above every acceleration channel's band edge) to
 :math:`\min(6\max_d\omega_{n,d}, \omega_N/2)`, below half of every channel's noise floor
 edge and 0.9 of any excitation edge (:func:`chain_band`).
