@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -204,6 +203,7 @@ class Places:
     driven: np.ndarray  # driven dofs
     i_S0: np.ndarray  # their levels' positions
     cols: tuple[np.ndarray, ...]  # per dof, its equation's coefficients
+    where: tuple[int, ...]  # per dof, the position of its mass in theta (-1: known)
 
     def masses(self, th: np.ndarray) -> np.ndarray:
         """:math:`m`, ``(..., n)``."""
@@ -219,33 +219,49 @@ class Places:
 
     def mass(self, th: np.ndarray, d: int) -> np.ndarray:
         """:math:`m_d`, ``(..., 1)``."""
-        if d in self.free:
-            return th[..., self.i_mass[list(self.free).index(d)], None]
+        i = self.where[d]
+        if i >= 0:
+            return th[..., i : i + 1]
         return np.full((*th.shape[:-1], 1), self.fixed[d])
 
+    def lam(self, th: np.ndarray, d: int) -> np.ndarray:
+        r""":math:`\lambda_d(\theta) = (m_d, \theta_{c\in d})`, ``(..., 1 + |c \in d|)``."""
+        return np.concatenate([self.mass(th, d), th[..., self.cols[d]]], axis=-1)
 
-@lru_cache(maxsize=64)
+
 def places(system: System) -> Places:
-    """The :class:`Places` of ``system`` (made once per system)."""
+    """The :class:`Places` of ``system`` (made once per system, kept on it: a system's
+    hash walks all its terms, too slow for every evaluation of the equations).
+    """
+    got = system.__dict__.get("_places")
+    if got is None:
+        got = system.__dict__["_places"] = _places(system)
+    return got
+
+
+def _places(system: System) -> Places:
     names = system.param_names
     free = [d for d, m in enumerate(system.masses) if m is None]
     driven = [system.dofs.index(x) for x in system.driven]
     s0 = ["S0" if system.single_names else f"S0[{system.dofs[d]}]" for d in driven]
+    i_mass = [names.index(f"mass[{system.dofs[d]}]") for d in free]
+    where = [-1] * system.n
+    for d, i in zip(free, i_mass, strict=True):
+        where[d] = i
     return Places(
         fixed=np.array([1.0 if m is None else m for m in system.masses]),
         free=np.array(free, dtype=int),
-        i_mass=np.array([names.index(f"mass[{system.dofs[d]}]") for d in free], dtype=int),
+        i_mass=np.array(i_mass, dtype=int),
         driven=np.array(driven, dtype=int),
         i_S0=np.array([names.index(n) for n in s0], dtype=int),
         cols=tuple(dof_columns(system, d)[0] for d in range(system.n)),
+        where=tuple(where),
     )
 
 
 def lam(system: System, theta: np.ndarray, d: int) -> np.ndarray:
     r""":math:`\lambda_d(\theta) = (m_d, \theta_{c\in d})`, ``(..., 1 + |c \in d|)``."""
-    th = np.asarray(theta, dtype=float)
-    pl = places(system)
-    return np.concatenate([pl.mass(th, d), th[..., pl.cols[d]]], axis=-1)
+    return places(system).lam(np.asarray(theta, dtype=float), d)
 
 
 def shape(state: ChainState, d: int, omega: np.ndarray) -> np.ndarray | None:
