@@ -29,7 +29,8 @@ an undriven dof's force is zero.  Three components read it, each per driven dof
 :math:`L_d(\omega)` is 1 for a displacement channel and the acceleration's aliases
 :math:`\sum_j(\omega/(\omega + 2j\omega_N))^2` for an acceleration channel
 (:func:`hosid.components.chain_features.shape`).
-The J2 band runs from bin 2 (and above every acceleration channel's band edge) to
+The J2 band runs from bin 2 (and from :data:`EDGE_FACTOR` times every acceleration
+channel's band edge) to
 :math:`\min(6\max_d\omega_{n,d}, \omega_N/2)`, below half of every channel's noise floor
 edge and 0.9 of any excitation edge (:func:`chain_band`).
 """
@@ -48,7 +49,20 @@ from .chain_features import force_ffts, lam, restoration, shape
 from .level import FLOOR, MIN_BINS, MIN_BLOCKS, TOP, alias_factor, end_blocks
 from .spectral import BAND_FACTOR
 
-__all__ = ["ChainJ2", "ChainLevel", "chain_band"]
+__all__ = ["EDGE_FACTOR", "ChainJ2", "ChainLevel", "chain_band"]
+
+#: The J2 band starts this many times above an acceleration channel's band edge, where the
+#: integration's high-pass (:func:`hosid.spectra.integrate.integrate_in_time`, gain
+#: :math:`u^8/(1 + u^8)`) passes :math:`1 - 1.5\cdot10^{-5}` of the power (at 1.5 times
+#: the edge it passed 0.96, and the in-band levels came out 1-2 standard errors low).
+EDGE_FACTOR = 4.0
+#: An acceleration channel's displacement carries the trapezoid rule's random walk
+#: :math:`\epsilon` (spectrum :math:`S_0\Delta t^2/12m^2\omega^2`,
+#: :func:`hosid.spectra.integrate.integrate_in_time`), which the stiffness turns into a
+#: share :math:`\omega_n^4\Delta t^2/12\omega^2` of the inferred force's level: the J2 band
+#: starts where that share is below this (on 6 records of the 2-dof chain the in-band levels
+#: from bin 2 were 1-2 standard errors low).
+WALK_SHARE = 1e-3
 
 
 def chain_band(state: ChainState) -> tuple[float, float]:
@@ -62,7 +76,11 @@ def chain_band(state: ChainState) -> tuple[float, float]:
     edges = [c.spectrum.edge[0] for c in chans if c.spectrum.edge is not None]
     if edges:
         hi = min(hi, 0.9 * min(edges))
-    return max(c.omega_low for c in chans), hi
+    lo = EDGE_FACTOR * max(c.omega_low for c in chans)
+    if any(c.kind == "acceleration" for c in chans):  # the trapezoid's walk: stiffness x it
+        w2 = max(c.scales.omega_n for c in chans) ** 2
+        lo = max(lo, w2 * state.dt / math.sqrt(12.0 * WALK_SHARE))
+    return lo, hi
 
 
 def _driven(system: System) -> list[int]:
