@@ -38,8 +38,8 @@ gradient part :math:`\bar\kappa\varphi_c(\dot r_e)(e_j - e_i)` and loses the res
 the full state and the masses known, the identities' efficient GMM reaches 0.98-0.99 of
 the bound's variance for the velocity coefficients of the study's chains
 (:math:`\kappa_i/\kappa_j` 0.75-0.8) and 1.00 for the others (``analyses/chain_study.py``,
-:func:`hosid.model.chain_information.identity_efficiency`); products of the dofs'
-velocities (:math:`v_iv_j`, :math:`v_d^2`) as further rows gained less than 0.005.
+its ``identity_efficiency``); products of the dofs' velocities (:math:`v_iv_j`,
+:math:`v_d^2`) as further rows gained less than 0.005.
 
 For the one-element chain these are the single oscillator's identities
 (:mod:`hosid.components.identities`, white force).  Every statistic is restored for what
