@@ -107,14 +107,15 @@ def _damp(q, v, t, sys_, k1, k2, k3, k4, tmp):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _baoab(q, v, xi, n_int, sub, h, sys_, kick, drv, qs, vs, vh, skip):  # pragma: no cover
+def _baoab(q, v, xi, n_int, sub, h, sys_, kick, drv, store, skip):  # pragma: no cover
     """Advance ``(q, v)`` by ``n_int`` sample intervals of ``sub`` splitting steps.
 
     Interval ``i`` ends at sample time ``i + 1``; sample ``j`` (time ``skip + j``) goes to
     ``qs``, ``vs``, and the velocity half an interval before it to ``vh[j]`` (when ``vh``
-    has rows).
+    has rows); ``store`` is ``(qs, vs, vh)``.
     """
     ei, ej, code, coef, minv = sys_
+    qs, vs, vh = store
     n = q.size
     f = np.empty(n)
     k1, k2, k3, k4, tmp = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
@@ -198,7 +199,7 @@ def simulate(
     while done < total:
         m = min(CHUNK, total - done)
         xi = rng.standard_normal((m * substeps, drv.size))
-        _baoab(q, v, xi, m, substeps, h, sys_, kick, drv, qs, vs, vh, skip - done)
+        _baoab(q, v, xi, m, substeps, h, sys_, kick, drv, (qs, vs, vh), skip - done)
         done += m
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise RuntimeError("the simulated response escaped")

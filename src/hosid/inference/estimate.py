@@ -261,10 +261,10 @@ def estimate(
     ``force`` estimates a record that fails a check anyway, ``unit`` names the
     displacement's unit in the checks' messages, ``checks`` passes the record's checks
     when the caller already made them; an acceleration record is the one-element chain's.
-    With ``impulsive_excitation`` and fewer than one
-    impulse a sample, the estimate is corrected for its sampling bias by ``simulations``
-    records of the model a step (:mod:`hosid.inference.correction`; 0: not; their seed
-    is fixed by the record's samples), with a progress bar when ``progress``.
+    With ``impulsive_excitation`` and fewer than one impulse a sample, the estimate is
+    corrected for its sampling bias by ``simulations`` records of the model a step
+    (:mod:`hosid.inference.correction`; 0: not; their seed is fixed by the record's
+    samples), with a progress bar when ``progress``.
 
     Raises
     ------
@@ -274,17 +274,11 @@ def estimate(
     HosidInputError
         If the record is too short, constant, or not described by the model.
     """
-    if not isinstance(model, System) and getattr(record, "measured", ()) == ("acceleration",):
-        record = Record(record.x, record.dt, record.name, record.segments, ("x",), record.measured)
-        model = System.single(model)
-    if isinstance(model, System):  # a system's own state, pilot and components
-        from .system_estimate import estimate_system
+    if isinstance(model, System) or getattr(record, "measured", ()) == ("acceleration",):
+        from .system_estimate import routed  # a system's own state, pilot and components
 
-        default = components is None or list(components) == components_for()
-        return estimate_system(
-            record, model, None if default else components, start=start, rounds=rounds,
-            block_seconds=block_seconds, force=force, unit=unit, checks=checks,
-        )  # fmt: skip
+        kw = {"block_seconds": block_seconds, "force": force, "unit": unit, "checks": checks}
+        return routed(record, model, components, start=start, rounds=rounds, **kw)
     model = Model.from_spec(model)
     checks = list(checks or [])
     if not isinstance(record, RecordState):

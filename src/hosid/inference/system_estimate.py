@@ -44,7 +44,7 @@ from .estimate import Estimate, _solve_rounds, typical_scale
 from .gmm import hansen
 from .solutions import alternatives
 
-__all__ = ["estimate_system", "system_components"]
+__all__ = ["estimate_system", "routed", "system_components"]
 
 
 def system_components(cost: str | None = None) -> list:
@@ -62,6 +62,20 @@ def system_components(cost: str | None = None) -> list:
             "oscillator's (give --model with term names for it)"
         )
     return [ChainIdentities(), ChainJ2(), ChainLevel(), ChainKurtosis()]
+
+
+def routed(record, model, components, **settings) -> Estimate:
+    """:func:`hosid.inference.estimate.estimate` of a system, or of a single oscillator's
+    acceleration record (its one-element chain, the channel named ``x``); the single
+    oscillator's default components stand for the system's.
+    """
+    if not isinstance(model, System):
+        record = Record(record.x, record.dt, record.name, record.segments, ("x",), record.measured)
+        model = System.single(model)
+    from .estimate import components_for
+
+    default = components is None or list(components) == components_for()
+    return estimate_system(record, model, None if default else components, **settings)
 
 
 def system_state(record: Record, system: System, *, block_seconds=None) -> ChainState:
