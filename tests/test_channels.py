@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from hosid.errors import HosidInputError, RecordRejected
-from hosid.model.chain import ChainRecord, simulate_chain, write_chain_record
+from hosid.model.chain import simulate_chain, write_chain_record
 from hosid.model.system import System
 from hosid.model.system_file import MEASURED_KINDS
 from hosid.record import MEASURED, Record, read_record, write_record
@@ -33,8 +33,8 @@ LINEAR2 = System(
 )  # fmt: skip
 
 
-def _record(chain: ChainRecord, name="chain") -> Record:
-    return Record(chain.x, chain.dt, name, channels=chain.dofs, measured=chain.measured)
+def _record(chain: Record, name="chain") -> Record:
+    return Record(chain.x, chain.dt, name, channels=chain.channels, measured=chain.measured)
 
 
 @pytest.fixture(scope="module")

@@ -45,7 +45,7 @@ def run():
     system = System.single("linear", {"a1": A1, "a2": A2, "S0": S0})
     rec, q, v = simulate_chain(system, duration=400.0, dt=DT, rng=np.random.default_rng(1),
                                measured="acceleration", return_state=True)  # fmt: skip
-    return rec.x[:, 0], q[:, 0], v[:, 0]
+    return rec.x, q[:, 0], v[:, 0]
 
 
 def _bandpass(y, lo, hi):

@@ -113,7 +113,8 @@ def test_layout_with_known_masses_and_driven_subset(tmp_path):
         "a1[x1-x2]", "a2[x1-x2]", "S0[x2]",
     )  # fmt: skip
     assert s.masses == (1.0, 0.5) and s.driven == ("x2",)
-    assert s.measured == ("acceleration", "displacement")
+    assert s.measured == ("acceleration", None)  # x2 undeclared: the record says
+    assert s.declared == {"x1": "acceleration"}
     assert dict(s.values) == {"a1[x1-x2]": 0.2, "S0[x2]": 3.0}
     np.testing.assert_allclose(s.levels(np.arange(7.0)), [0.0, 6.0])
     with pytest.raises(HosidInputError, match="values missing for a1\\[ground-x1\\]"):

@@ -32,7 +32,10 @@ _LAZY = {
     "components_for": "hosid.inference",
     "estimate": "hosid.inference",
     "fit": "hosid.inference",
+    "FitOptions": "hosid.inference",
     "PAPER_PARAMS": "hosid.model",
+    "System": "hosid.model",
+    "simulate_chain": "hosid.model",
     "Model": "hosid.model",
     "simulate": "hosid.model",
     "Record": "hosid.record",
@@ -42,14 +45,17 @@ _LAZY = {
 
 __all__ = [
     "PAPER_PARAMS",
+    "FitOptions",
     "HosidInputError",
     "Model",
     "Record",
+    "System",
     "components_for",
     "estimate",
     "fit",
     "read_record",
     "simulate",
+    "simulate_chain",
     "write_record",
 ]
 

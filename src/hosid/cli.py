@@ -74,7 +74,8 @@ def _analysis_options(p: argparse.ArgumentParser) -> None:
         "--model",
         default="paper",
         metavar="MODEL",
-        help="linear, paper, or comma-separated term names; default paper",
+        help="linear, paper, comma-separated term names, or a system file (.toml: several "
+        "degrees of freedom, the record's channels); default paper",
     )
     _shape_option(p)
     p.add_argument(

@@ -9,6 +9,7 @@ import argparse
 
 from hosid import commands
 from hosid.arguments import integer, nonnegative, number, positive
+from hosid.system_commands import add_system_options
 
 __all__ = ["add_simulate_parser"]
 
@@ -71,6 +72,7 @@ def add_simulate_parser(sim: argparse.ArgumentParser) -> None:
             metavar="V",
             help=f"{name} after the change (with --change-at); default unchanged",
         )
+    add_system_options(sim)
     sim.add_argument("--duration", type=positive, default=2000.0, help="seconds, default 2000")
     sim.add_argument("--dt", type=positive, default=0.02, help="seconds, default 0.02")
     sim.add_argument("--seed", type=integer(0), default=0, help="default 0")

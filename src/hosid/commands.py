@@ -15,6 +15,7 @@ import numpy as np
 
 from hosid.errors import HosidInputError
 from hosid.output.console import fmt, print_fit, table
+from hosid.system_commands import simulate_system, system_file
 
 #: Old ``--method`` names of ``hosid estimate`` and the cost they now mean.
 METHODS = {
@@ -36,9 +37,9 @@ def _read(path: str):
 
 
 def _model(args):
-    """The model of ``--model``, with the measured shape of ``--excitation-shape``."""
+    """The model of ``--model`` (or a ``.toml`` file's system), with ``--excitation-shape``."""
     if getattr(args, "excitation_shape", None) is None:
-        return args.model
+        return system_file(args.model)
     from hosid.model.measured import with_shape
 
     return with_shape(args.model, args.excitation_shape)
@@ -58,6 +59,8 @@ def cmd_simulate(args) -> int:
             f"{out}: unknown file type {out.suffix or '(none)'!r}; use .csv or .npz"
         )
     _check_writable(out)
+    if getattr(args, "system", None) or getattr(args, "measured", None) == "acceleration":
+        return simulate_system(args, out)
     params = {k: getattr(args, k) for k in ("a1", "n1", "a2", "n2", "S0")}
     params.update(
         {

@@ -45,10 +45,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..chain_state import ChainState
 from ..components.base import Component, restoration
 from ..components.cumulant import ForceKurtosis
 from ..components.identities import Identities
 from ..components.level import Level
+from ..components.one_element import one_element
 from ..components.spectral import J2, default_band
 from ..components.tail import TAIL_PARAMS, Tail
 from ..errors import HosidInputError
@@ -56,16 +58,19 @@ from ..model.excitation import Spectrum
 from ..model.measured import MeasuredExcitation
 from ..model.model import Model
 from ..model.priors import LogUniform, PriorSet
+from ..model.system import System
 from ..progress import Stages
 from ..record import Record
 from ..screen import check_record, reject_failures
 from ..state import RecordState
 from ..verdicts import Check
+from .chain_pilot import chain_pilot
 from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, unbiased
 from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
+from .maps import likelihood_map
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
-from .settle import settled_term, white_limit
+from .settle import settled_note, settled_term, white_limit
 from .solutions import alternatives, select_solution
 
 __all__ = [
@@ -171,9 +176,11 @@ def excitation_for(
 
 @dataclass
 class Estimate:
-    """The mode of a quasi-likelihood and what it was built from."""
+    """The mode of a quasi-likelihood and what it was built from (a system's: its
+    :class:`~hosid.chain_state.ChainState`, and ``sigma_v`` one an element).
+    """
 
-    model: Model
+    model: Model | System
     state: RecordState
     theta: np.ndarray
     ql: QuasiLikelihood
@@ -202,7 +209,11 @@ class Estimate:
         return dict(zip(self.model.param_names, np.sqrt(np.diag(self.cov)).tolist(), strict=True))
 
     def scales(self):
-        """The state's scales with the restored velocity sd."""
+        """The state's scales with the restored velocity sd (a system's: its elements')."""
+        if isinstance(self.model, System):
+            from ..components.chain_features import system_scales
+
+            return system_scales(self.state, self.model, np.atleast_1d(self.sigma_v))
         return dataclasses.replace(self.state.scales, sigma_v=self.sigma_v)
 
 
@@ -214,16 +225,21 @@ def log_params(model: Model, priors: PriorSet | None = None) -> list[int]:
     return [i for i, n in enumerate(names) if n in ("S0", "wc", "wf", "zf")]
 
 
-def typical_scale(model: Model, state: RecordState, theta: np.ndarray) -> np.ndarray:
+def typical_scale(model: Model | System, state, theta: np.ndarray) -> np.ndarray:
     """A typical size of each parameter (finite differences, solver scaling)."""
-    priors = model.default_priors(state.scales, constrained=False)
+    if isinstance(model, System):
+        from ..components.chain_features import system_scales
+
+        priors = model.default_priors(system_scales(state, model), constrained=False)
+    else:
+        priors = model.default_priors(state.scales, constrained=False)
     width = np.array([priors[n].upper - priors[n].lower for n in model.param_names])
     return np.maximum(np.abs(theta), 1e-3 * np.where(np.isfinite(width), width, 1.0))
 
 
 def estimate(
     record: Record | RecordState,
-    model: Model | str = "paper",
+    model: Model | System | str = "paper",
     components: Sequence[Component] | None = None,
     *,
     start: np.ndarray | None = None,
@@ -244,10 +260,11 @@ def estimate(
     A :class:`~hosid.record.Record` is checked first (:func:`hosid.screen.check_record`);
     ``force`` estimates a record that fails a check anyway, ``unit`` names the
     displacement's unit in the checks' messages, ``checks`` passes the record's checks
-    when the caller already made them.  With ``impulsive_excitation`` and fewer than one
-    impulse a sample, the estimate is corrected for its sampling bias by ``simulations``
-    records of the model a step (:mod:`hosid.inference.correction`; 0: not; their seed
-    is fixed by the record's samples), with a progress bar when ``progress``.
+    when the caller already made them; an acceleration record is the one-element chain's.
+    With ``impulsive_excitation`` and fewer than one impulse a sample, the estimate is
+    corrected for its sampling bias by ``simulations`` records of the model a step
+    (:mod:`hosid.inference.correction`; 0: not; their seed is fixed by the record's
+    samples), with a progress bar when ``progress``.
 
     Raises
     ------
@@ -257,6 +274,11 @@ def estimate(
     HosidInputError
         If the record is too short, constant, or not described by the model.
     """
+    if isinstance(model, System) or getattr(record, "measured", ()) == ("acceleration",):
+        from .system_estimate import routed  # a system's own state, pilot and components
+
+        kw = {"block_seconds": block_seconds, "force": force, "unit": unit, "checks": checks}
+        return routed(record, model, components, start=start, rounds=rounds, **kw)
     model = Model.from_spec(model)
     checks = list(checks or [])
     if not isinstance(record, RecordState):
@@ -277,10 +299,14 @@ def estimate(
     kurtosis = model.has("wf") or model.has("rate")  # a filter and its oscillator may swap;
     if kurtosis and not any(isinstance(c, ForceKurtosis) for c in components):
         components.append(ForceKurtosis())  # the impulses' rate shows in the kurtosis
+    chain = one_element(state, model, components)  # the default: the one-element chain's
+    components = chain or components
     if start is not None:
         starts = [np.array(start, dtype=float)]
     elif whitening:  # the filter and the oscillator may swap: try each
         starts = whitened_pilots(state, model, initial_theta(state, model))
+    elif chain:
+        starts = [chain_pilot(ChainState.of(state), System.single(model))]
     else:
         starts = [pilot_estimate(state, model)]
     logs = log_params(model)
@@ -310,10 +336,10 @@ def estimate(
                 force=force, unit=unit, checks=checks, simulations=simulations,
                 progress=progress,
             )  # fmt: skip
-            est.notes.append(_settled_note(test, kept=False))
+            est.notes.append(settled_note(test, kept=False))
             est.excitation_test = test
             return est
-        notes.append(_settled_note(test, kept=True))
+        notes.append(settled_note(test, kept=True))
     J_best = float(-2.0 * ql(theta))
     solutions = [t for t, _, _ in found]
     # the impulses' sampling bias (.correction), where single impulses show: fewer than
@@ -341,17 +367,6 @@ def estimate(
     )  # fmt: skip
 
 
-def _settled_note(test: dict, *, kept: bool) -> str:
-    """What :mod:`hosid.inference.settle` found, in a sentence."""
-    found = f"D = {test['D']:.3g} on {test['reference']}, p = {test['p_value']:.2g}"
-    if kept:
-        return f"{test['effect']}: the record rejects a white force ({found})"
-    return (
-        f"{test['effect']} asked for, but the record does not reject a white force ({found} "
-        f">= {test['level']:g}): the white model is fitted (hosid.inference.settle)"
-    )
-
-
 def _solve_rounds(state, model, components, theta, rounds, logs, lower, upper):
     """``rounds`` of (prepare the equations at ``theta``, solve): the estimate and its
     quasi-likelihood.
@@ -368,25 +383,3 @@ def _solve_rounds(state, model, components, theta, rounds, logs, lower, upper):
             raise HosidInputError("the estimating equations have no finite solution")
         theta = new
     return theta, ql
-
-
-def likelihood_map(est: Estimate, draws: np.ndarray, loglike=None, n: int = 61) -> dict | None:
-    """The (calibrated, when ``loglike`` is given) quasi-log-likelihood over an
-    ``(a1, n1)`` grid around the draws and their mirror images, the other parameters at
-    the estimate (or ``None`` when the model lacks either coefficient).
-    """
-    loglike = est.ql if loglike is None else loglike
-    m = est.model
-    if not (m.has("a1") and m.has("n1")):
-        return None
-    i, j = m.index("a1"), m.index("n1")
-    qa = np.quantile(np.append(draws[:, i], -draws[:, i]), [0.0, 1.0])
-    qn = np.quantile(np.append(draws[:, j], -draws[:, j]), [0.0, 1.0])
-    pad_a = 0.25 * (qa[1] - qa[0]) + 1e-9
-    pad_n = 0.25 * (qn[1] - qn[0]) + 1e-9
-    ga = np.linspace(qa[0] - pad_a, qa[1] + pad_a, n)
-    gn = np.linspace(qn[0] - pad_n, qn[1] + pad_n, n)
-    A, N = np.meshgrid(ga, gn, indexing="ij")
-    th = np.broadcast_to(est.theta, (*A.shape, est.theta.size)).copy()
-    th[..., i], th[..., j] = A, N
-    return {"a1": ga, "n1": gn, "log_likelihood": loglike(th)}

@@ -46,7 +46,7 @@ from ..model.coordinates import COORDINATES
 from ..model.model import Model
 from .gmm import QuasiLikelihood, Transformed, j_difference, solve
 
-__all__ = ["SETTLED", "settled_term", "white_limit"]
+__all__ = ["SETTLED", "settled_note", "settled_term", "white_limit"]
 
 #: The excitation terms settled against the record, each with the level below which the
 #: record rejects the white Gaussian force it nests (module docstring).
@@ -96,3 +96,14 @@ def white_limit(
     J0, J = float(-2.0 * q0(v)), float(-2.0 * ql(theta))
     test = j_difference(J0, J, df=coord.df, boundary=coord.boundary and coord.df == 1)
     return {"effect": effect, **test, "level": SETTLED[effect]}
+
+
+def settled_note(test: dict, *, kept: bool) -> str:
+    """What :mod:`hosid.inference.settle` found, in a sentence."""
+    found = f"D = {test['D']:.3g} on {test['reference']}, p = {test['p_value']:.2g}"
+    if kept:
+        return f"{test['effect']}: the record rejects a white force ({found})"
+    return (
+        f"{test['effect']} asked for, but the record does not reject a white force ({found} "
+        f">= {test['level']:g}): the white model is fitted (hosid.inference.settle)"
+    )

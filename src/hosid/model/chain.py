@@ -39,27 +39,28 @@ covariance for a linear system: :math:`\mathrm{Cov}\,\bar a =
 (2P_{vv} - R_{vv}(\Delta t) - R_{vv}(\Delta t)^{\mathsf T})/\Delta t^2`, with
 :math:`R(\tau) = e^{A\tau}P` (:mod:`hosid.model.linear_chain`).
 
-Records: :class:`ChainRecord` (one column a dof), written by :func:`write_chain_record`
-to CSV (header ``t,x1,x2,...``) or ``.npz`` (one array a dof, ``dt``, ``dofs``,
-``measured``); a single dof named ``x`` gives today's single-channel files.
+Records: a :class:`hosid.record.Record` with one channel a dof (named as the dofs, each
+a displacement or an acceleration), written by :func:`hosid.record.write_record` to CSV
+(header ``t,x1,x2,...``) or ``.npz`` (one array a dof, ``dt``, ``dofs``, ``measured``);
+a single displacement dof named ``x`` gives today's single-channel files.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numba
 import numpy as np
 
 from ..errors import HosidInputError
+from ..record import Record, write_record
 from ..screen import THRESHOLDS
 from .linear_chain import modes, state_matrices
-from .system import GROUND, MEASURED_KINDS, System
+from .system import GROUND, System
 from .system_file import check_measured
 
-__all__ = ["CHUNK", "CODES", "ChainRecord", "simulate_chain", "write_chain_record"]
+__all__ = ["CHUNK", "CODES", "simulate_chain", "write_chain_record"]
 
 #: Samples simulated per call of the compiled kernel (the normals are drawn per chunk).
 CHUNK = 2048
@@ -147,43 +148,6 @@ def _heun_chain(q, v, dW, dZ, i0, sub, h, sys, burn, qs, vs, vh):  # pragma: no 
             vs[j] = v
 
 
-@dataclass(frozen=True, eq=False)
-class ChainRecord:
-    """A multi-channel record: ``x`` ``(n_samples, n_dofs)``, one column a dof (as
-    ``measured``: displacement or acceleration), sampled every ``dt`` s from ``t = 0``.
-    """
-
-    x: np.ndarray
-    dt: float
-    dofs: tuple[str, ...]
-    measured: tuple[str, ...]
-    name: str = ""
-
-    def __post_init__(self) -> None:
-        x = np.array(self.x, dtype=float)
-        if x.ndim != 2 or x.shape[1] != len(self.dofs) or len(self.measured) != len(self.dofs):
-            raise HosidInputError(f"x must be (n_samples, {len(self.dofs)}), one column a dof")
-        if not np.all(np.isfinite(x)):
-            raise HosidInputError("a record must be finite")
-        if not (math.isfinite(self.dt) and self.dt > 0):
-            raise HosidInputError("dt must be finite and positive")
-        if any(m not in MEASURED_KINDS for m in self.measured):
-            raise HosidInputError(f"measured must be one of {', '.join(MEASURED_KINDS)}")
-        x.setflags(write=False)
-        object.__setattr__(self, "x", x)
-        object.__setattr__(self, "dofs", tuple(self.dofs))
-        object.__setattr__(self, "measured", tuple(self.measured))
-
-    @property
-    def t(self) -> np.ndarray:
-        """Sample times (s)."""
-        return np.arange(self.x.shape[0]) * self.dt
-
-    def channel(self, dof: str) -> np.ndarray:
-        """The samples of one dof."""
-        return self.x[:, self.dofs.index(dof)]
-
-
 def _kernel_system(system: System, th: np.ndarray):
     ei, ej, code = [], [], []
     for e, term in system.columns:
@@ -238,7 +202,7 @@ def simulate_chain(
     measured=None,
     name: str = "",
     return_state: bool = False,
-) -> ChainRecord | tuple[ChainRecord, np.ndarray, np.ndarray]:
+) -> Record | tuple[Record, np.ndarray, np.ndarray]:
     r"""Simulate one stationary multi-channel record of ``system`` (module docstring).
 
     Parameters
@@ -257,7 +221,8 @@ def simulate_chain(
         mode of the linear part, :math:`\min(-\mathrm{Re}\,\lambda)`, between 60 and
         20 000 s (600 s if the linear part does not decay).
     measured : str or mapping, optional
-        What each channel holds (default the system's ``measured``).
+        What each channel holds (default the system's ``measured``; an undeclared
+        channel holds the displacement).
     return_state : bool
         Also return the displacements and velocities at the sample times, each
         ``(n_samples, n)``.
@@ -273,6 +238,7 @@ def simulate_chain(
     if th.ndim != 1:
         raise HosidInputError("simulate_chain takes one parameter vector")
     kinds = system.measured if measured is None else check_measured(measured, system.dofs)
+    kinds = tuple(k or "displacement" for k in kinds)
     rate = _check(system, th, duration, dt, int(substeps))
     if burn_in is None:
         burn_in = min(max(60.0, 30.0 / rate), 20000.0) if rate > 0 else 600.0
@@ -302,42 +268,17 @@ def simulate_chain(
         for d, kind in enumerate(kinds):
             if kind == "acceleration":
                 x[:, d] = acc[:, d]
-    record = ChainRecord(x, float(dt), system.dofs, kinds, name)
+    record = Record(x, float(dt), name, channels=system.dofs, measured=kinds)
     return (record, qs, vs) if return_state else record
 
 
-def write_chain_record(record: ChainRecord, path: str | Path) -> Path:
-    """Write a multi-channel record to CSV (header ``t,<dof>,...``; times with 15
-    significant digits, samples with 10) or ``.npz`` (one array a dof, exactly, and
-    ``dt``, ``dofs``, ``measured``), chosen by the suffix.
+def write_chain_record(record: Record, path: str | Path) -> Path:
+    """Write a simulated record (:func:`hosid.record.write_record`: CSV with header
+    ``t,<dof>,...`` or ``.npz`` with one array a dof, ``dt``, ``dofs``, ``measured``).
 
     Raises
     ------
     HosidInputError
         If the suffix is not ``.csv`` or ``.npz`` or the file cannot be written.
     """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in (".csv", ".npz"):
-        raise HosidInputError(
-            f"{path}: unknown file type {path.suffix or '(none)'!r}; use .csv or .npz"
-        )
-    try:
-        if suffix == ".csv":
-            data = np.column_stack([record.t, record.x])
-            fmt = ["%.15g", *(["%.10g"] * len(record.dofs))]
-            header = ",".join(("t", *record.dofs))
-            np.savetxt(path, data, fmt=fmt, delimiter=",", header=header, comments="")
-        else:
-            arrays = {d: record.x[:, k] for k, d in enumerate(record.dofs)}
-            with path.open("wb") as fh:
-                np.savez(
-                    fh,
-                    dt=np.float64(record.dt),
-                    dofs=np.array(record.dofs),
-                    measured=np.array(record.measured),
-                    **arrays,
-                )
-    except OSError as exc:
-        raise HosidInputError(f"cannot write {path}: {exc.strerror or exc}") from None
-    return path
+    return write_record(record, path)

@@ -49,6 +49,7 @@ import math
 import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -103,7 +104,8 @@ class System:
     driven : sequence of str, optional
         The dofs with a white force (default all).
     measured : str or mapping, optional
-        ``"displacement"`` (default) or ``"acceleration"``, for all channels or by dof.
+        ``"displacement"`` or ``"acceleration"``, for all channels or by dof; stored as
+        one kind or ``None`` (undeclared: the record's file says) a dof.
     values : mapping, optional
         Parameter values by name (a simulation's truth); stored as ``(name, value)``
         pairs in :attr:`param_names` order (``dict(system.values)``).
@@ -191,21 +193,37 @@ class System:
 
     # --------------------------------------------------------------- structure
     @property
+    def declared(self) -> dict[str, str]:
+        """What the declared channels measure, by dof (for
+        :meth:`hosid.record.Record.select`, which checks them against the record's file).
+        """
+        return {d: k for d, k in zip(self.dofs, self.measured, strict=True) if k is not None}
+
+    @property
     def n(self) -> int:
         """Number of degrees of freedom."""
         return len(self.dofs)
 
-    @property
+    @cached_property
     def columns(self) -> tuple[tuple[int, DriftTerm], ...]:
         """(element index, term) of every drift coefficient, in :attr:`param_names` order."""
         return tuple((k, t) for k, e in enumerate(self.elements) for t in e.terms)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The terms as a model names them: ``"x1-x2: linear_damping + linear_stiffness"``
+        an element (the one-element chain's: its term names and ``excitation_level``).
+        """
+        if self.single_names:
+            return (*(t.name for t in self.elements[0].terms), "excitation_level")
+        return tuple(f"{e.label}: {' + '.join(t.name for t in e.terms)}" for e in self.elements)
 
     @property
     def n_drift(self) -> int:
         """Number of drift coefficients (``theta[:n_drift]``)."""
         return len(self.columns)
 
-    @property
+    @cached_property
     def param_names(self) -> tuple[str, ...]:
         """Parameter names in order: the layout of ``theta`` (module docstring)."""
         if self.single_names:
@@ -217,6 +235,32 @@ class System:
     def index(self, name: str) -> int:
         """Position of parameter ``name`` in ``theta``."""
         return self.param_names.index(name)
+
+    def has(self, name: str) -> bool:
+        """Whether ``name`` is a parameter of the system."""
+        return name in self.param_names
+
+    @property
+    def log_params(self) -> list[int]:
+        """Parameters handled in their logarithm: the unknown masses and the levels."""
+        return [i for i, n in enumerate(self.param_names) if n.startswith(("mass[", "S0"))]
+
+    def default_priors(self, scales, *, constrained: bool = True):
+        """Every parameter's default prior from the record's
+        :class:`~hosid.model.system_priors.SystemScales`; with ``constrained`` eq (65)
+        per damped element (:mod:`hosid.model.system_priors`).
+        """
+        from .system_priors import system_priors
+
+        return system_priors(self, scales, constrained=constrained)
+
+    def describe(self) -> dict:
+        """The system as plain data (a fit's ``system`` attribute)."""
+        elements = [{"between": list(e.between), "terms": [t.name for t in e.terms]}
+                    for e in self.elements]  # fmt: skip
+        masses = dict(zip(self.dofs, self.masses, strict=True))
+        return {"dofs": list(self.dofs), "elements": elements, "masses": masses,
+                "driven": list(self.driven), "measured": self.declared}  # fmt: skip
 
     @property
     def incidence(self) -> np.ndarray:

@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import HosidInputError
+from ..record.core import MEASURED
 from .model import _ORDER, ALIASES, get_term
 from .terms import DriftTerm
 
@@ -51,8 +52,8 @@ __all__ = ["GROUND", "MEASURED_KINDS", "RESERVED", "read_system", "system_from_d
 
 #: The name of the fixed end of an element.
 GROUND = "ground"
-#: What a channel of a record may hold.
-MEASURED_KINDS = ("displacement", "acceleration")
+#: What a channel of a record may hold (the record's own list).
+MEASURED_KINDS = MEASURED
 #: Names a degree of freedom may not take (the ground, a record file's other columns).
 RESERVED = (GROUND, "t", "dt", "segment", "dofs", "measured")
 #: The keys of a system file and of one of its elements.
@@ -202,17 +203,20 @@ def check_driven(driven: Any, dofs: Sequence[str]) -> tuple[str, ...]:
     return tuple(d for d in dofs if d in driven) if len(driven) else tuple(dofs)
 
 
-def check_measured(measured: Any, dofs: Sequence[str]) -> tuple[str, ...]:
-    """What each channel measures: one kind for all, a mapping by dof, or a tuple."""
+def check_measured(measured: Any, dofs: Sequence[str]) -> tuple[str | None, ...]:
+    """What each channel measures as declared: one kind for all, a mapping by dof, or a
+    tuple; ``None`` for a dof the declaration does not name (undeclared: a record's file
+    then says what it holds, and a simulation writes a displacement).
+    """
     if isinstance(measured, str):
         measured = dict.fromkeys(dofs, measured)
     if isinstance(measured, Mapping):
         for d in measured:
             if d not in dofs:
                 raise HosidInputError(f"measured: unknown degree of freedom {d!r}")
-        measured = tuple(measured.get(d, "displacement") for d in dofs)
-    measured = tuple(measured) or ("displacement",) * len(dofs)
-    bad = [m for m in measured if m not in MEASURED_KINDS]
+        measured = tuple(measured.get(d) for d in dofs)
+    measured = tuple(measured) or (None,) * len(dofs)
+    bad = [m for m in measured if m is not None and m not in MEASURED_KINDS]
     if bad or len(measured) != len(dofs):
         raise HosidInputError(
             f"measured must be {' or '.join(MEASURED_KINDS)} (for all dofs or by dof), "

@@ -207,6 +207,10 @@ def _table(summary: Mapping[str, Any], truths: Mapping[str, float]) -> list[dict
 
 def _model(tree: xr.DataTree) -> dict[str, Any]:
     model = stored_model(tree)
+    if model is None and attr(tree, "system"):  # a system's equations, one a dof
+        from .system_text import system_model
+
+        return system_model(attr(tree, "system"))
     terms = model.terms if model is not None else ()
     drift = [_TERM_TEXT.get(t.name, t.latex) for t in terms if t.kind == "drift"]
     return {

@@ -175,7 +175,7 @@ def stored_model(tree: xr.DataTree):
     from ..model.model import Model
 
     names = list(attr(tree, "model") or [])
-    if not names:
+    if not names or ":" in "".join(names):  # none, or a system's elements
         return None
     table = attr(tree, "excitation_shape")
     terms = [
@@ -188,8 +188,10 @@ def stored_model(tree: xr.DataTree):
 
 
 def parameter_names(tree: xr.DataTree) -> list[str]:
-    """Sampled parameters (posterior variables except the derived ``a1eq``)."""
-    return [k for k in tree["posterior"].data_vars if k != "a1eq"]
+    """Sampled parameters (posterior variables except the derived ``a1eq``, of a system's
+    elements ``a1eq[...]``).
+    """
+    return [k for k in tree["posterior"].data_vars if k != "a1eq" and not k.startswith("a1eq[")]
 
 
 @contextmanager

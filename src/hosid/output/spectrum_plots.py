@@ -53,7 +53,7 @@ def _median_level(tree: xr.DataTree, omega: np.ndarray) -> np.ndarray | None:
     return np.median(_shape_draws(tree, omega, None), axis=0)
 
 
-def spectrum_plot(tree: xr.DataTree) -> Figure:
+def spectrum_plot(tree: xr.DataTree) -> Figure | None:
     r"""The record's displacement spectrum and the fit's linear-equivalent prediction.
 
     The prediction is
@@ -71,10 +71,12 @@ def spectrum_plot(tree: xr.DataTree) -> Figure:
 
     Returns
     -------
-    matplotlib.figure.Figure
-        One axes, logarithmic in the spectrum.
+    matplotlib.figure.Figure or None
+        One axes, logarithmic in the spectrum; ``None`` for a system's fit.
     """
     obs = tree["observed_data"]
+    if "Sxx" not in obs:  # a system's: one spectrum a dof
+        return None
     omega = np.asarray(obs["omega"].values, dtype=float)
     sxx = np.asarray(obs["Sxx"].values, dtype=float)
     length = length_unit(tree)

@@ -1,0 +1,110 @@
+r"""What a fit needs to know of what it fits: a single oscillator's model or a system.
+
+:func:`hosid.inference.fit.fit` is one path for both; the few places where they differ
+are here: which description a call names (:func:`resolve`), the damping coefficients,
+eq (65)'s derived variables (``a1eq``, or one per damped element, ``a1eq[ground-x1]``),
+the observed spectra (the displacement's and the inferred force's, one pair a dof for a
+system: ``Sxx[x1]``, ``force[x1]``), and the attributes that name the description
+(``model``, and for a system ``system``, :meth:`hosid.model.system.System.describe`).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..components.spectral import default_band, force_periodogram
+from ..errors import HosidInputError
+from ..model.measured import shape_attrs
+from ..model.model import Model
+from ..model.system import System
+from ..model.system_priors import constraint_name, damped, equivalent_damping
+
+__all__ = ["damping_columns", "derived", "describe", "observed", "resolve"]
+
+
+def resolve(system, model) -> Model | System:
+    """The description a fit names: ``system`` or ``model``, each a System, a system
+    file's path (``.toml``), a Model or a model spec (default ``"paper"``).
+
+    Raises
+    ------
+    HosidInputError
+        If both are given, or the file does not describe a system.
+    """
+    if system is not None and model is not None:
+        raise HosidInputError("give a system or a model, not both")
+    given = system if system is not None else (model or "paper")
+    if isinstance(given, System):
+        return given
+    if isinstance(given, str | Path) and str(given).lower().endswith(".toml"):
+        return System.from_toml(given)
+    return Model.from_spec(given)
+
+
+def damping_columns(structure: Model | System) -> list[int]:
+    """The positions of the damping (velocity) coefficients in ``theta``."""
+    if isinstance(structure, System):
+        return [c for c, (_, t) in enumerate(structure.columns) if t.variable == "v"]
+    return [i for i, t in enumerate(structure.drift_terms) if t.variable == "v"]
+
+
+def derived(structure: Model | System, theta: np.ndarray, sigma_v) -> dict[str, np.ndarray]:
+    """Eq (65)'s equivalent damping of ``theta`` ``(..., p)``: ``a1eq`` of a model (or an
+    element) with more damping than ``a1`` alone, one variable an element of a system.
+    """
+    if isinstance(structure, Model):
+        damping = damping_columns(structure)
+        terms = structure.drift_terms
+        if len(damping) > 1 or (damping and terms[damping[0]].params != ("a1",)):
+            return {"a1eq": structure.equivalent_damping(theta, sigma_v)}
+        return {}
+    out = {}
+    eq = equivalent_damping(structure, theta, np.atleast_1d(sigma_v))
+    for e in damped(structure):
+        params = [t.params for t in structure.elements[e].terms if t.variable == "v"]
+        if len(params) > 1 or params != [("a1",)]:
+            out[constraint_name(structure, e)] = eq[..., e]
+    return out
+
+
+def observed(est, theta: np.ndarray, omega_max: float | None) -> dict[str, np.ndarray]:
+    """``omega``, the displacement's block periodogram and the force inferred at
+    ``theta`` (eq 45) on the J2 band, per dof for a system (module docstring).
+    """
+    structure, state = est.model, est.state
+    if isinstance(structure, Model):
+        band = (0.0, float(omega_max)) if omega_max is not None else default_band(state)
+        bins = state.layout.bins(*band, k_min=1)
+        return {
+            "omega": bins * state.layout.d_omega,
+            "Sxx": state.periodogram("x", bins),
+            "force": force_periodogram(state, structure, theta, bins),
+        }
+    from ..components.chain_features import force_ffts, lam, restoration
+    from ..components.chain_spectral import chain_band
+
+    L = state.layout
+    lo, hi = chain_band(state)
+    bins = L.bins(lo, hi, k_min=1)
+    norm = 2 * math.pi * L.T * state.window.k2
+    rest = restoration(state, structure, theta)
+    out = {"omega": bins * L.d_omega}
+    for d, dof in enumerate(structure.dofs):
+        Q = state.block_fft(("q", d), lambda b, d=d: b["q"][d], bins)
+        X = np.tensordot(lam(structure, theta, d), force_ffts(state, structure, d, rest, bins), 1)
+        tag = "" if structure.single_names else f"[{dof}]"
+        out[f"Sxx{tag}"] = np.mean(Q.real**2 + Q.imag**2, axis=0) / norm
+        out[f"force{tag}"] = np.mean(X.real**2 + X.imag**2, axis=0) / norm
+    return out
+
+
+def describe(structure: Model | System) -> dict:
+    """The attributes that name what was fitted: ``model`` (term names; a system's
+    elements as ``"x1-x2: linear_damping + linear_stiffness"``) and ``system``.
+    """
+    if isinstance(structure, Model):
+        return {"model": list(structure.names), **shape_attrs(structure)}
+    return {"model": list(structure.names), "system": structure.describe()}

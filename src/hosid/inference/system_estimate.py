@@ -1,0 +1,144 @@
+r"""Record -> state -> a system's components -> the calibrated quasi-likelihood and its mode.
+
+The same steps as a single oscillator's estimate (:mod:`hosid.inference.estimate`), for a
+:class:`hosid.model.system.System`:
+
+1. the record's channels are selected in the system's dof order (what the system file
+   declares they measure is checked against the record's file) and checked
+   (:func:`hosid.screen.check_record`); their state is prepared once
+   (:class:`hosid.chain_state.ChainState`: acceleration channels integrated in their band);
+2. a closed-form pilot (:mod:`hosid.inference.chain_pilot`);
+3. the same rounds of efficient GMM (:func:`hosid.inference.estimate._solve_rounds`,
+   :mod:`hosid.inference.gmm`) on the system's components, prepared at the current
+   estimate, within the default priors' supports; the same Laplace covariance, cap and
+   Hansen test.
+
+The default components (``cost=None``) generalize the single oscillator's default one by
+one: the generator identities of every element's terms
+(:class:`~hosid.components.chain_identities.ChainIdentities`), J2's in-band level of every
+driven dof and the inferred forces' cross-spectra
+(:class:`~hosid.components.chain_spectral.ChainJ2`), each driven dof's level above the
+band (:class:`~hosid.components.chain_spectral.ChainLevel`) and its force's fourth
+cumulant (:class:`~hosid.components.chain_cumulant.ChainKurtosis`).  For the one-element
+chain they give the single oscillator's equations to the last digit, and the estimate is
+the single oscillator's default estimate (``tests/test_system_fit.py``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..chain_state import ChainState
+from ..components.chain_cumulant import ChainKurtosis
+from ..components.chain_features import restoration, system_scales
+from ..components.chain_identities import ChainIdentities
+from ..components.chain_spectral import ChainJ2, ChainLevel
+from ..errors import HosidInputError
+from ..model.system import System
+from ..record import Record
+from ..screen import check_record, reject_failures
+from .chain_pilot import chain_pilot
+from .estimate import Estimate, _solve_rounds, typical_scale
+from .gmm import hansen
+from .solutions import alternatives
+
+__all__ = ["estimate_system", "routed", "system_components"]
+
+
+def system_components(cost: str | None = None) -> list:
+    """The components of a system's fit (module docstring).
+
+    Raises
+    ------
+    HosidInputError
+        For a cost other than the default (the paper's J2/J4 sets are the single
+        oscillator's).
+    """
+    if cost is not None:
+        raise HosidInputError(
+            f"a system is fitted with the default components; cost {cost!r} is the single "
+            "oscillator's (give --model with term names for it)"
+        )
+    return [ChainIdentities(), ChainJ2(), ChainLevel(), ChainKurtosis()]
+
+
+def routed(record, model, components, **settings) -> Estimate:
+    """:func:`hosid.inference.estimate.estimate` of a system, or of a single oscillator's
+    acceleration record (its one-element chain, the channel named ``x``); the single
+    oscillator's default components stand for the system's.
+    """
+    if not isinstance(model, System):
+        record = Record(record.x, record.dt, record.name, record.segments, ("x",), record.measured)
+        model = System.single(model)
+    from .estimate import components_for
+
+    default = components is None or list(components) == components_for()
+    return estimate_system(record, model, None if default else components, **settings)
+
+
+def system_state(record: Record, system: System, *, block_seconds=None) -> ChainState:
+    """The state of ``record``'s channels named by the system's dofs (module docstring);
+    the displacements keep their offsets when an element has an asymmetric term.
+    """
+    record = record.select(system.dofs, measured=system.declared)
+    centred = not any(t.params[0] in ("b2", "m") for _, t in system.columns)
+    return ChainState.from_record(record, block_seconds=block_seconds, centred=centred)
+
+
+def estimate_system(
+    record: Record | ChainState,
+    system: System,
+    components: Sequence | None = None,
+    *,
+    start: np.ndarray | None = None,
+    rounds: int = 2,
+    block_seconds: float | None = None,
+    force: bool = False,
+    unit: str = "m",
+    checks: Sequence | None = None,
+) -> Estimate:
+    """The calibrated quasi-likelihood of ``record`` under ``system`` and its mode
+    (module docstring); the arguments are :func:`hosid.inference.estimate.estimate`'s.
+
+    Raises
+    ------
+    RecordRejected
+        If the record fails a check and ``force`` is false.
+    HosidInputError
+        If a channel is missing, the record is too short, or the equations have no
+        solution.
+    """
+    checks = list(checks or [])
+    if isinstance(record, ChainState):
+        state = record
+    else:
+        picked = record.select(system.dofs, measured=system.declared)
+        checks = checks or check_record(picked, unit=unit)
+        reject_failures(checks, force=force)
+        state = system_state(record, system, block_seconds=block_seconds)
+    components = list(components or system_components())
+    theta0 = np.array(start, dtype=float) if start is not None else chain_pilot(state, system)
+    support = system.default_priors(system_scales(state, system), constrained=False)
+    lower = np.array([support[n].lower for n in system.param_names])
+    upper = np.array([support[n].upper for n in system.param_names])
+    logs = system.log_params
+    theta, ql = _solve_rounds(state, system, components, theta0, rounds, logs, lower, upper)
+    J_best = float(-2.0 * ql(theta))
+    cov = ql.laplace(theta, typical_scale(system, state, theta))
+    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    cap = np.where(np.isfinite(upper - lower), 0.25 * (upper - lower), np.inf)
+    f = np.minimum(1.0, cap / sd)
+    cov = cov * np.outer(f, f)
+    sigma_v = restoration(state, system, theta).velocity_sd
+    sigma_v = float(sigma_v[0]) if system.single_names else sigma_v
+    others = alternatives(ql, theta, [theta], cov, J_best)
+    notes = [
+        (f"channel {c.name}: " if state.n > 1 else "") + c.spectrum.summary()
+        for c in state.channels
+    ] + state.band_notes()
+    if not np.all(np.isfinite(theta)):
+        raise HosidInputError("the estimating equations have no finite solution")
+    return Estimate(system, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks,
+                    notes, others, None)  # fmt: skip

@@ -1,0 +1,105 @@
+r"""A system's default priors, from its record's scales, and eq (65) per element.
+
+Each element's terms take the single oscillator's default priors
+(:mod:`hosid.model.terms`) at the scales of the element's relative motion,
+:math:`\sigma_{r_e}` and :math:`\sigma_{\dot r_e}` (:class:`SystemScales`): for the
+one-element chain they are the single oscillator's priors.  An unknown mass is
+log-uniform on :math:`[10^{-2}, 10^2]` (the first dof's mass is 1), and a driven dof's
+level :math:`S_{0,d}` log-uniform over four decades each side of its acceleration's
+rough level times the square of its known mass (two decades, as the single oscillator's,
+when the mass is known; a factor :math:`10^2` more each side when it is not, which the
+mass's range needs).
+
+Eq (65) holds per element: with the restored sd :math:`\sigma_{\dot r_e}` of its relative
+velocity, :math:`a_{1eq,e} = a_{1,e} + n_{1,e}\sqrt{8/\pi}\,\sigma_{\dot r_e} + \mu_e
+\sqrt{2/\pi}/\sigma_{\dot r_e} > 0` for every element with a damping term (one
+constraint each, ``a1eq[ground-x1]``; ``a1eq`` for the one-element chain).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .priors import LogUniform, PriorSet
+from .terms import Scales
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .system import System
+
+__all__ = ["MASS_RANGE", "SystemScales", "equivalent_damping", "system_priors"]
+
+#: The support of an unknown mass (the first dof's mass is 1).
+MASS_RANGE = (1e-2, 1e2)
+
+
+@dataclass(frozen=True)
+class SystemScales:
+    """The scales of a system's record: one :class:`Scales` per element (its relative
+    displacement and velocity sds, the ``S0`` of its second end's acceleration, ``dt``)
+    and the rough acceleration level of every dof.
+    """
+
+    elements: tuple[Scales, ...]
+    levels: tuple[float, ...]
+
+    @property
+    def sigma_v(self) -> np.ndarray:
+        """The elements' relative velocity sds (restored where the state says so)."""
+        return np.array([s.sigma_v for s in self.elements])
+
+
+def equivalent_damping(system: System, theta, sigma_v: Sequence[float]) -> np.ndarray:
+    r"""Eq (65) per element, ``(..., E)``: :math:`\sum_{c\in e}\theta_cc_c(\sigma_{\dot
+    r_e})`, e.g. :math:`a_1 + n_1\sqrt{8/\pi}\sigma_{\dot r_e}` (0 for an element without
+    damping); ``theta`` is ``(..., p)``.
+    """
+    th = np.asarray(theta, dtype=float)
+    out = np.zeros((*th.shape[:-1], len(system.elements)))
+    for c, (e, t) in enumerate(system.columns):
+        f = t.damping_factor(float(sigma_v[e]))
+        if f:
+            out[..., e] = out[..., e] + f * th[..., c]
+    return out
+
+
+def damped(system: System) -> list[int]:
+    """The elements with a damping term."""
+    return sorted({e for e, t in system.columns if t.damping_factor(1.0)})
+
+
+def constraint_name(system: System, e: int) -> str:
+    """``a1eq[<element>]`` (``a1eq`` for the one-element chain)."""
+    return "a1eq" if system.single_names else f"a1eq[{system.elements[e].label}]"
+
+
+def system_priors(system: System, scales: SystemScales, *, constrained: bool = True) -> PriorSet:
+    """Every parameter's default prior (module docstring); with ``constrained`` eq (65)
+    per damped element.
+    """
+    names = iter(system.param_names)
+    priors = {}
+    for e, t in system.columns:
+        got = t.default_priors(scales.elements[e])
+        priors[next(names)] = got[t.params[0]]
+    masses = system.masses
+    for m in masses:
+        if m is None:
+            priors[next(names)] = LogUniform(*MASS_RANGE)
+    for d in system.driven:
+        k = system.dofs.index(d)
+        known = masses[k] is not None
+        base = scales.levels[k] * (masses[k] ** 2 if known else 1.0)
+        wide = 1e2 if known else 1e4
+        priors[next(names)] = LogUniform(base / wide, wide * base)
+    constraints = {}
+    if constrained:
+        sv = scales.sigma_v
+        for e in damped(system):
+            constraints[constraint_name(system, e)] = lambda th, e=e: equivalent_damping(
+                system, th, sv
+            )[..., e]
+    return PriorSet(priors, constraints)
