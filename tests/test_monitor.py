@@ -230,4 +230,11 @@ def test_a_step_is_named_with_its_time_and_size(tmp_path, after, kind):
     assert res.tracks.kinds[p] == kind
     with (tmp_path / "m" / "changes.csv").open() as fh:
         (row,) = list(csv.DictReader(fh))
-    assert row["parameter"] == p and row["kind"] == kind
+    assert row["parameter"] == p and row["kind"] == kind and row["role"] == "first"
+    # the kept tracks (with each window's correlations) give the same test without a refit
+    from hosid.monitor.tracks import Tracks
+
+    kept = Tracks.read(tmp_path / "m")
+    np.testing.assert_allclose(kept.corr, res.tracks.corr, rtol=1e-12)
+    again = kept.changes(alpha=0.01, level=0.95, seed=0)
+    assert [(x.parameter, x.time, x.size) for x in again] == [(c.parameter, c.time, c.size)]

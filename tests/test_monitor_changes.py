@@ -47,10 +47,11 @@ def noise(rng, n, cov, overlap=False):
     return (b[:-1] + b[1:]) / np.sqrt(2.0) if overlap else b
 
 
-def run(s, e, Y, cov, rng, names=NAMES, draws=999, **options):
-    """:func:`joint_changes` with one covariance for every window."""
+def run(s, e, Y, cov, rng, names=NAMES, draws=999, alpha=0.05, **options):
+    """:func:`joint_changes` with one covariance for every window, at ``alpha`` 0.05 (the
+    rates stated at the tests were measured there)."""
     covs = np.broadcast_to(cov, (len(s), *cov.shape))
-    return joint_changes(s, e, Y, covs, names, rng=rng, draws=draws, **options)
+    return joint_changes(s, e, Y, covs, names, rng=rng, draws=draws, alpha=alpha, **options)
 
 
 def direct_gls(s, e, Y, covs, steps, tau, nugget, baseline=None):
@@ -196,34 +197,47 @@ def test_time_and_size_intervals_cover(step_runs):
 
 def test_changed_parameter_is_named():
     """Correlated parameters: a step of -1.25 (1.4 marginal sd, 3.2 sd given p1) of p0 at
-    the middle of window 13 of 20.  Measured over 1000 records: p0 named 0.920, named and
-    nothing else 0.887, p1 named instead 0.080, p2 instead 0.002; of those naming p0, the
-    time interval held the truth in 0.933, the size interval in 0.975."""
+    the middle of window 13 of 20.  Measured over 1000 records: p0 named 0.947 (by the
+    test or as a companion 0.919, as an alternative the rest), named and nothing else
+    0.835, the test's or a companion's name p0 alone 0.879, p1 named instead 0.053, an
+    alternative named 0.078; of those naming p0, the time interval held the truth in
+    0.932, the size interval in 0.975."""
     rng = np.random.default_rng(20260207)
     n, reps, tau, delta = 20, 300, 135.0, -1.25
     s, e = windows(n)
-    named = alone = instead = hits_t = hits_s = 0
+    named = primary = alone = alone_primary = instead = hits_t = hits_s = 0
     for _ in range(reps):
         Y = noise(rng, n, COV3)
         Y[:, 0] += delta * share_after(s, e, tau)
         found, _ = run(s, e, Y, COV3, rng)
         mine = [c for c in found if c.parameter == "p0"]
+        first = [c for c in found if c.role != "alternative"]
+        assert all(c.role in ("first", "companion", "alternative") for c in found)
+        assert not found or any(c.role == "first" for c in found)
         alone += len(found) == 1 and len(mine) == 1
+        alone_primary += len(first) == 1 and first[0].parameter == "p0"
         instead += not mine and any(c.parameter == "p1" for c in found)
         if mine:
             named += 1
+            primary += mine[0].role != "alternative"
             hits_t += mine[0].time_lo <= tau <= mine[0].time_hi
             hits_s += mine[0].size_lo <= delta <= mine[0].size_hi
-    for count, rate in ((named, 0.920), (alone, 0.887), (instead, 0.080)):
+    for count, rate in (
+        (named, 0.947),
+        (primary, 0.919),
+        (alone, 0.835),
+        (alone_primary, 0.879),
+        (instead, 0.053),
+    ):
         assert band(reps, rate)[0] <= count <= band(reps, rate)[1]
-    assert band(named, 0.933)[0] <= hits_t <= band(named, 0.933)[1]
+    assert band(named, 0.932)[0] <= hits_t <= band(named, 0.932)[1]
     assert band(named, 0.975)[0] <= hits_s <= band(named, 0.975)[1]
 
 
 def test_simultaneous_steps_are_both_named():
     """p0 by -1.25 and p2 by 3.0 at one time in window 10 of 20.  Measured over 1000
-    records: both and nothing else 0.895, p0 missed 0.073, a third parameter named 0.087
-    (mostly p1, correlated with p0); the two share one time and interval."""
+    records: both and nothing else 0.905, p0 missed 0.057, a third parameter named 0.085
+    (p1, correlated with p0); the two share one time and interval."""
     rng = np.random.default_rng(20260208)
     n, reps = 20, 100
     s, e = windows(n)
@@ -244,7 +258,7 @@ def test_simultaneous_steps_are_both_named():
             mu, sizes, _ = direct_gls(s, e, Y, [COV3] * n, order, a.time, 0.1)
             np.testing.assert_allclose([c.size for c in found], sizes, rtol=1e-8)
             np.testing.assert_allclose([c.before for c in found], mu[order], rtol=1e-8)
-    assert exact >= band(reps, 0.895)[0]
+    assert exact >= band(reps, 0.905)[0]
 
 
 def test_two_changes_are_found_by_segmentation():

@@ -52,8 +52,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NUGGET", "Change", "lr_cut", "null_maxima", "overlap_correlation", "share_after"]
+__all__ = [
+    "ALPHA",
+    "NUGGET",
+    "Change",
+    "lr_against",
+    "lr_cut",
+    "lr_extra",
+    "null_maxima",
+    "overlap_correlation",
+    "share_after",
+]
 
+#: Default chance of naming a change in a stationary record (``hosid monitor --alpha``):
+#: an operator acts on an alarm, so one false alarm in a hundred records, not twenty.
+ALPHA = 0.01
 #: At most this many floats in one block of Monte-Carlo statistics (draws x candidates).
 CHUNK_ELEMENTS = 2_000_000
 #: Smaller products bypass BLAS, which took up to 1000 times longer on a busy machine.
@@ -68,7 +81,11 @@ class Change:
     time_hi]``, ``size`` :math:`\hat\delta` (after minus before) in ``[size_lo,
     size_hi]`` (intervals at ``level``), ``before`` :math:`\hat\mu_p`, and the test
     that named it: ``statistic`` above ``threshold``, i.e. ``p_value <= alpha`` (the
-    level of that test).
+    level of that test).  ``role`` is ``first`` (the test's maximum), ``companion`` (it
+    stepped too) or ``alternative``: a step of it alone explains the records as well as
+    the others' up to chance; then ``statistic`` is the likelihood ratio of the others'
+    step against its own, which stayed at or below ``threshold`` (``p_value`` > ``alpha``
+    = 1 - level: :func:`lr_against`).
     """
 
     parameter: str
@@ -84,6 +101,7 @@ class Change:
     threshold: float
     alpha: float
     level: float
+    role: str = "first"
 
 
 def share_after(starts, ends, tau) -> np.ndarray:
@@ -188,3 +206,81 @@ def lr_cut(bases: np.ndarray, best: int, fitted: np.ndarray, level: float, draws
         return t.max(axis=1) - t[:, best]
 
     return float(np.quantile(_simulate(flat, draws, rng, shift, reduce), level))
+
+
+def _stack(bases, more) -> tuple[np.ndarray, int, int]:
+    """The columns ``bases`` (k, N, times) and ``more`` (c, N, times) side by side."""
+    q = np.asarray(bases, dtype=float)
+    q = q[None] if q.ndim == 2 else q
+    k, n, m = q.shape
+    more = np.asarray(more, dtype=float).reshape(-1, n, m)
+    flat = np.concatenate([q, more]).transpose(1, 0, 2).reshape(n, -1)
+    return flat, k, m
+
+
+def lr_against(bases, single, fitted, draws: int, rng: np.random.Generator) -> np.ndarray:
+    r"""The LR :math:`\max_\tau T^*_S(\tau) - \max_\tau T^*_q(\tau)` of ``draws`` records
+    simulated from a step of parameter :math:`q` alone (a parametric bootstrap).
+
+    :math:`T_S(\tau) = \sum_l (q_{l\tau}^T z)^2` is the statistic of the named step
+    (orthonormal ``bases`` as in :func:`lr_cut`), :math:`T_q(\tau) = (a_{q\tau}^T z)^2`
+    that of :math:`q` alone (unit columns ``single``), and :math:`z^* = \hat m_q + w` with
+    ``fitted`` :math:`\hat m_q` the step of :math:`q` fitted at its own best time.  The
+    observed LR beyond the ``level`` quantile of these rejects :math:`q` alone at
+    :math:`1 -` ``level``.
+
+    Parameters
+    ----------
+    bases : ndarray (k, N, times) or (N, times)
+    single : ndarray (N, times)
+    fitted : ndarray (N,)
+    draws : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray (draws,)
+    """
+    flat, k, m = _stack(bases, single)
+    shift = np.asarray(fitted, dtype=float) @ flat
+
+    def reduce(t):
+        joint = t[:, : k * m].reshape(t.shape[0], k, m).sum(axis=1).max(axis=1)
+        return joint - t[:, k * m :].max(axis=1)
+
+    return _simulate(flat, draws, rng, shift, reduce)
+
+
+def lr_extra(bases, extra, fitted, draws: int, rng: np.random.Generator) -> np.ndarray:
+    r"""The LR :math:`\max_{c,\tau} [T^*_S(\tau) + (b_{c\tau}^T z^*)^2] - \max_\tau
+    T^*_S(\tau)` of the best extra parameter :math:`c` stepping with the named ones, over
+    ``draws`` records simulated from the named step alone (``fitted``, whitened):
+    :math:`z^* = \hat m_S + w`.
+
+    The time is refitted with the extra parameter, so the LR is not :math:`\chi^2_1`: a
+    companion can move the common time to where its own noise is largest, more so when
+    the named step's time is poorly known (a late change).
+
+    Parameters
+    ----------
+    bases : ndarray (k, N, times) or (N, times)
+        The named parameters' orthonormal columns (as in :func:`lr_cut`).
+    extra : ndarray (c, N, times)
+        Each candidate's unit columns orthogonalized to ``bases`` at each time.
+    fitted : ndarray (N,)
+    draws : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray (draws,)
+    """
+    flat, k, m = _stack(bases, extra)
+    shift = np.asarray(fitted, dtype=float) @ flat
+
+    def reduce(t):
+        t = t.reshape(t.shape[0], -1, m)
+        t_S = t[:, :k].sum(axis=1)
+        return (t_S[:, None, :] + t[:, k:]).max(axis=(1, 2)) - t_S.max(axis=1)
+
+    return _simulate(flat, draws, rng, shift, reduce)

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from .. import arguments
 from ..errors import HosidInputError
+from .changes import ALPHA
 
 __all__ = ["add_monitor_parser", "cmd_monitor"]
 
@@ -56,8 +57,8 @@ def add_monitor_parser(sub) -> None:
     p.add_argument(
         "--alpha",
         type=arguments.probability,
-        default=0.05,
-        help="chance of naming a change in a stationary record; default 0.05",
+        default=ALPHA,
+        help=f"chance of naming a change in a stationary record; default {ALPHA:g}",
     )
     p.add_argument(
         "--level", type=arguments.probability, default=0.95, help="of the intervals; default 0.95"
@@ -125,6 +126,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     )
     for c in res.changes:
         kind = res.tracks.kinds.get(c.parameter, "")
+        kind += ", or the others: the records do not tell" if c.role == "alternative" else ""
         print(
             f"  {c.parameter} ({kind}) at {c.time:.6g} s [{c.time_lo:.6g}, {c.time_hi:.6g}]: "
             f"{c.size:+.4g} [{c.size_lo:+.4g}, {c.size_hi:+.4g}]"

@@ -32,6 +32,7 @@ from typing import Any
 
 from ..errors import HosidInputError
 from ..output.files import locked_dir, staged, write_atomic
+from .changes import ALPHA
 from .source import Source
 from .tracks import Tracks, read_baseline
 from .windows import Layout, choose_layout, count, describe, windows
@@ -125,7 +126,7 @@ def monitor(
     block_seconds: float | None = None,
     analysis: str = "fit",
     options: Mapping[str, Any] | None = None,
-    alpha: float = 0.05,
+    alpha: float = ALPHA,
     level: float = 0.95,
     baseline: str | Path | None = None,
     baseline_windows: int = 0,

@@ -30,7 +30,7 @@ __all__ = ["CHANGE_COLUMNS", "TRACK_COLUMNS", "Tracks", "read_baseline"]
 TRACK_COLUMNS = ("start", "end", "parameter", "mean", "sd", "q05", "q50", "q95")
 STATS = ("mean", "sd", "q05", "q50", "q95")
 CHANGE_COLUMNS = ("parameter", "time", "time_lo", "time_hi", "size", "size_lo", "size_hi")
-CHANGE_EXTRA = ("kind", "before", "statistic", "p_value", "threshold")
+CHANGE_EXTRA = ("kind", "before", "statistic", "p_value", "threshold", "role")
 
 
 def _kinds(model: str) -> dict[str, str]:
@@ -175,6 +175,8 @@ class Tracks:
             else (("window", "parameter"), np.zeros((self.start.size, 0)))
             for s in STATS
         }
+        if self.corr is not None and self.tested:
+            data["corr"] = (("window", "tested", "tested_other"), self.corr)
         ds = xr.Dataset(
             data,
             coords={
@@ -185,10 +187,49 @@ class Tracks:
                 "status": ("window", np.array(self.status, dtype=str)),
                 "verdict": ("window", np.array(self.verdict, dtype=str)),
                 "kind": ("parameter", np.array([self.kinds[p] for p in params], dtype=str)),
+                **({"tested": self.tested, "tested_other": self.tested} if "corr" in data else {}),
             },
         )
         ds.attrs.update({k: v for k, v in self.layout.as_dict().items()})
         return ds
+
+    @classmethod
+    def read(cls, path: str | Path) -> Tracks:
+        """The tracks a monitor wrote to ``tracks.nc`` (``path``: the file or its folder),
+        with each window's posterior correlation (``corr``), so that the change test can
+        be run again without refitting (:meth:`changes`).  The windows' messages are
+        not stored there and read as empty.
+
+        Raises
+        ------
+        HosidInputError
+            If the file is missing, is not a monitor's tracks, or has no correlations
+            (written before they were kept).
+        """
+        import xarray as xr
+
+        path = Path(path)
+        path = path / "tracks.nc" if path.is_dir() else path
+        if not path.is_file():
+            raise HosidInputError(f"{path}: no such file")
+        with xr.open_dataset(path) as ds:
+            ds = ds.load()
+        if "corr" not in ds or "mean" not in ds:
+            raise HosidInputError(f"{path}: not a monitor's tracks.nc with correlations")
+        a = ds.attrs
+        layout = Layout(int(a["window_samples"]), int(a["step_samples"]), float(a["dt"]),
+                        float(a["block_seconds"]))  # fmt: skip
+        params = [str(p) for p in ds["parameter"].values]
+        values = {p: {s: ds[s].sel(parameter=p).values.astype(float) for s in STATS}
+                  for p in params}  # fmt: skip
+        n = ds.sizes["window"]
+        return cls(
+            layout, ds["window"].values.astype(int), ds["start"].values.astype(float),
+            ds["end"].values.astype(float), [str(v) for v in ds["status"].values],
+            [str(v) for v in ds["verdict"].values], [""] * n, values,
+            dict(zip(params, (str(k) for k in ds["kind"].values), strict=True)),
+            ds["corr"].values.astype(float),
+        )  # fmt: skip
 
     def write(self, stage: Path, changes, *, settings, alpha, level) -> list[Path]:
         """Write the monitor's files into ``stage`` (module docstring of
@@ -223,6 +264,7 @@ class Tracks:
         row = {k: getattr(c, k) for k in CHANGE_COLUMNS}
         row.update(kind=self.kinds.get(c.parameter, ""), before=c.before)
         row.update(statistic=c.statistic, p_value=c.p_value, threshold=c.threshold)
+        row.update(role=c.role)
         return row
 
 
