@@ -196,6 +196,20 @@ def test_fit_of_a_two_dof_chain(chain_file):
     assert np.all(post["a1eq[ground-x1]"].values > 0)  # eq 65 per element
     assert list(tree["observed_data"].data_vars) == ["Sxx[x1]", "force[x1]", "Sxx[x2]",
                                                      "force[x2]"]  # fmt: skip
+    # the modal view: the small-amplitude modes hold the truth's linear part (4 sd)
+    from hosid.model.linear_chain import modes
+    from hosid.output.results import summarize
+
+    summary = summarize(tree, warn=False)
+    truth = modes(system, system.vector())
+    assert len(summary["modes"]) == len(summary["modes_small_amplitude"]) == 2
+    for m, f, z in zip(summary["modes_small_amplitude"], truth.frequency_hz, truth.zeta,
+                       strict=True):  # fmt: skip
+        assert abs(m["frequency_hz"]["mean"] - f) < 4 * m["frequency_hz"]["sd"]
+        assert abs(m["damping_ratio"]["mean"] - z) < 4 * m["damping_ratio"]["sd"]
+    # the hardening ground spring raises the first mode at the response level
+    first = summary["modes"][0]["frequency_hz"]["mean"]
+    assert first > summary["modes_small_amplitude"][0]["frequency_hz"]["q95"]
 
 
 def test_fit_settings_and_their_errors(chain_file, paper_record):
@@ -226,4 +240,5 @@ def test_command_line_simulates_and_fits_a_system(tmp_path, chain_file, capsys):
     report = (out / "report.html").read_text()
     assert "mass[x2] ẍ_x2 + (a1[x1-x2] ṙ + a2[x1-x2] r)(r = x2 - x1) = F_x2" in report
     assert "integrated in time above" in report
+    assert '<table id="modes">' in report and len(summary["modes"]) == 2
     capsys.readouterr()

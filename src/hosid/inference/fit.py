@@ -134,6 +134,7 @@ def fit(
     flat = th.reshape(-1, len(names))
     lmap = likelihood_map(est, flat, calibrated) if o.with_map else None
     attrs = _attrs(record, est, cal, priors, chain, o, cost, kde)
+    attrs.update(St.modal(est, th))
     attrs["timings"] = timings
     attrs["fit_seconds"] = time.perf_counter() - t0
     comp_names = list(est.ql.slices)

@@ -22,7 +22,7 @@ from ..model.model import Model
 from ..model.system import System
 from ..model.system_priors import constraint_name, damped, equivalent_damping
 
-__all__ = ["damping_columns", "derived", "describe", "observed", "resolve"]
+__all__ = ["damping_columns", "derived", "describe", "modal", "observed", "resolve"]
 
 
 def resolve(system, model) -> Model | System:
@@ -99,6 +99,27 @@ def observed(est, theta: np.ndarray, omega_max: float | None) -> dict[str, np.nd
         out[f"Sxx{tag}"] = np.mean(Q.real**2 + Q.imag**2, axis=0) / norm
         out[f"force{tag}"] = np.mean(X.real**2 + X.imag**2, axis=0) / norm
     return out
+
+
+def modal(est, theta: np.ndarray) -> dict:
+    """A system's modal view over the posterior draws ``theta`` ``(..., p)``
+    (:mod:`hosid.model.modal`): the attributes ``modes`` (at the record's response level),
+    ``modes_small_amplitude`` and ``modes_linearisation``; none for a single oscillator's
+    model.
+    """
+    structure = est.model
+    if not isinstance(structure, System):
+        return {}
+    from ..components.chain_features import relative
+    from ..model.modal import LINEARISATION, response_slopes, small_slopes, summarize_modes
+
+    r, _ = relative(est.state, structure)
+    slopes = response_slopes(structure, r, est.sigma_v)
+    return {
+        "modes": summarize_modes(structure, theta, slopes),
+        "modes_small_amplitude": summarize_modes(structure, theta, small_slopes(structure)),
+        "modes_linearisation": LINEARISATION["response"],
+    }
 
 
 def describe(structure: Model | System) -> dict:

@@ -237,6 +237,21 @@ def _state(summary: Mapping[str, Any]) -> list[tuple[str, str]]:
     return _pairs({k: v for k, v in rows.items() if v is not None})
 
 
+def _modes(summary: Mapping[str, Any], key: str) -> list[dict[str, str]]:
+    """A system's modes (``summary[key]``) as table rows: frequency and damping ratio,
+    mean (sd) and 90 % interval, and the shape.
+    """
+
+    def cell(d):
+        return f"{_num(d['mean'])} ({_num(d['sd'])}) [{_num(d['q05'])}, {_num(d['q95'])}]"
+
+    return [
+        {"frequency": cell(m["frequency_hz"]), "damping": cell(m["damping_ratio"]),
+         "shape": ", ".join(f"{v:+.3f}" for v in m["shape"])}
+        for m in summary.get(key) or []
+    ]  # fmt: skip
+
+
 def _versions(summary: Mapping[str, Any]) -> list[tuple[str, str]]:
     """The provenance row of the libraries' versions, as text (``3.10`` is no number)."""
     known = {k: v for k, v in (summary.get("versions") or {}).items() if v}
@@ -263,6 +278,9 @@ def _context(
         "has_truth": bool(truths),
         "derived_a1eq": "a1eq" in truths and "a1eq" not in (summary.get("truths") or {}),
         "model": _model(tree),
+        "modes": _modes(summary, "modes"),
+        "modes_small": _modes(summary, "modes_small_amplitude"),
+        "dofs": (attr(tree, "system") or {}).get("dofs", []),
         "components": [
             (c, _show((summary.get("components_info") or {}).get(c, {})))
             for c in summary.get("components") or []

@@ -64,6 +64,8 @@ __all__ = [
 
 #: The distributions whose versions every result records (:func:`versions`).
 LIBRARIES = ("hosid", "numpy", "scipy", "emcee", "arviz", "numba", "matplotlib", "xarray")
+#: A system's modal view in ``summary.json`` (:func:`hosid.inference.structure.modal`).
+MODAL = ("modes", "modes_small_amplitude", "modes_linearisation")
 
 
 class ConvergenceWarning(UserWarning):
@@ -313,6 +315,7 @@ def summarize(tree: xr.DataTree, *, warn: bool = True) -> dict[str, Any]:
         "verdict": overall(Check.from_dict(c) for c in checks),
         "record_notes": attr(tree, "record_notes") or [],
         "excitation_test": attr(tree, "excitation_test"),
+        **{k: attr(tree, k) for k in MODAL if attr(tree, k) is not None},
         "forced": bool(attr(tree, "forced", 0)),
         "fit_seconds": attr(tree, "fit_seconds"),
         "calibration": attr(tree, "calibration"),

@@ -1,0 +1,144 @@
+r"""The modal view of a fitted system: natural frequencies, damping ratios and mode shapes
+of its linearisation, as derived posterior quantities.
+
+Each element's force :math:`\sum_c\theta_c\varphi_c` is replaced by an equivalent linear
+one, :math:`c_e\dot r_e + k_e r_e`, with :math:`c_e = \sum_{c\in e}\theta_c\gamma_c` over
+its velocity terms and :math:`k_e = \sum_{c\in e}\theta_c\gamma_c` over its displacement
+terms; the slopes :math:`\gamma_c` are
+
+- **at the record's response level** (:func:`response_slopes`, what a linear
+  identification of the same record sees): a displacement term's mean slope over the
+  record, :math:`\gamma_c = \overline{\varphi_c'(r_e)}` (for Gaussian :math:`r_e` the
+  statistical linearisation :math:`E[\varphi_c(r)r]/E[r^2]`, by Stein's lemma:
+  :math:`3\overline{r_e^2}` for :math:`r^3`), and a velocity term's eq (65) factor at the
+  element's restored velocity sd (:math:`\sqrt{8/\pi}\,\sigma_{\dot r_e}` for
+  :math:`\dot r|\dot r|`, :meth:`hosid.model.base.DriftTerm.damping_factor`);
+- **at small amplitude** (:func:`small_slopes`): 1 for ``linear_damping`` and
+  ``linear_stiffness``, 0 for the others, whose slope at rest is zero (Coulomb friction
+  sticks and is left out), as in :mod:`hosid.model.linear_chain`.
+
+For a linear system both are the system itself.  With :math:`M`, :math:`C = B^{\mathsf T}
+\mathrm{diag}(c)B`, :math:`K = B^{\mathsf T}\mathrm{diag}(k)B` the modes are those of
+:func:`hosid.model.linear_chain.modes` (eigenvalues :math:`\lambda = -\zeta\omega \pm
+i\omega\sqrt{1-\zeta^2}` of the state matrix), computed for every retained posterior draw
+(:func:`modal_draws`) and summarised like the parameters (:func:`summarize_modes`): the
+frequency :math:`\omega/2\pi` (Hz) and the damping ratio :math:`\zeta` with their mean,
+sd and 5/25/50/75/95 % quantiles, and the mean shape (the real part of each draw's shape,
+scaled so that its largest entry is 1, averaged and scaled again).  Modes are matched
+across draws by the order of their frequencies.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import linalg
+
+from .system import System
+
+__all__ = ["MAX_DRAWS", "modal_draws", "response_slopes", "small_slopes", "summarize_modes"]
+
+#: At most this many posterior draws (evenly spaced) enter the modal summary.
+MAX_DRAWS = 4000
+QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
+LINEARISATION = {
+    "response": "equivalent linear at the record's response level: a displacement term's "
+    "mean slope over the record, a velocity term's eq (65) factor",
+    "small": "small amplitude: the linear terms alone",
+}
+
+
+def small_slopes(system: System) -> np.ndarray:
+    r""":math:`\gamma_c` at rest, one per drift coefficient (module docstring)."""
+    return np.array(
+        [float(t.name in ("linear_damping", "linear_stiffness")) for _, t in system.columns]
+    )
+
+
+def response_slopes(system: System, r: np.ndarray, sigma_v) -> np.ndarray:
+    r""":math:`\gamma_c` at the response level (module docstring) from every element's
+    relative displacement ``r`` ``(E, N)`` over the record and relative velocity sd
+    ``sigma_v`` ``(E,)``.
+    """
+    sv = np.atleast_1d(np.asarray(sigma_v, dtype=float))
+    out = np.zeros(len(system.columns))
+    for c, (e, t) in enumerate(system.columns):
+        if t.variable == "x":
+            out[c] = float(np.mean(t.phi(r[e], 1)))
+        elif t.variable == "v":
+            out[c] = t.damping_factor(float(sv[e]))
+    return out
+
+
+def _thin(theta: np.ndarray) -> np.ndarray:
+    flat = np.asarray(theta, dtype=float).reshape(-1, np.shape(theta)[-1])
+    if flat.shape[0] > MAX_DRAWS:
+        flat = flat[np.linspace(0, flat.shape[0] - 1, MAX_DRAWS).round().astype(int)]
+    return flat
+
+
+def modal_draws(system: System, theta, slopes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    r"""``omega`` (rad/s) and ``zeta`` ``(D, n)`` and real shapes ``(D, n, n)`` (dof, mode)
+    of the equivalent linear system of every draw of ``theta`` ``(..., p)`` (at most
+    :data:`MAX_DRAWS`), with the slopes ``slopes`` (module docstring).  A draw with fewer
+    than ``n`` underdamped modes (an overdamped one) is left out.
+    """
+    flat = _thin(theta)
+    gamma = np.asarray(slopes, dtype=float)
+    B = system.incidence
+    n, E = system.n, len(system.elements)
+    is_v = np.array([t.variable == "v" for _, t in system.columns])
+    is_x = np.array([t.variable == "x" for _, t in system.columns])
+    elem = np.array([e for e, _ in system.columns], dtype=int)
+    nd = len(system.columns)
+    omegas, zetas, shapes = [], [], []
+    for th in flat:
+        c = np.bincount(elem, weights=th[:nd] * gamma * is_v, minlength=E)
+        k = np.bincount(elem, weights=th[:nd] * gamma * is_x, minlength=E)
+        minv = 1.0 / system.mass_vector(th)
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        A[n:, :n] = -minv[:, None] * (B.T @ (k[:, None] * B))
+        A[n:, n:] = -minv[:, None] * (B.T @ (c[:, None] * B))
+        lam, vec = linalg.eig(A)
+        keep = lam.imag > 1e-12 * np.maximum(np.abs(lam), 1e-300)
+        if keep.sum() != n:
+            continue
+        lam, vec = lam[keep], vec[:n, keep]
+        order = np.argsort(np.abs(lam), kind="stable")
+        lam, vec = lam[order], vec[:, order]
+        vec = vec / vec[np.argmax(np.abs(vec), axis=0), np.arange(n)]
+        omegas.append(np.abs(lam))
+        zetas.append(-lam.real / np.abs(lam))
+        shapes.append(vec.real)
+    if not omegas:
+        return np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, n, n))
+    return np.array(omegas), np.array(zetas), np.array(shapes)
+
+
+def _stats(v: np.ndarray) -> dict[str, float]:
+    q = np.quantile(v, QUANTILES)
+    out = {"mean": float(np.mean(v)), "sd": float(np.std(v, ddof=1)) if v.size > 1 else 0.0}
+    out.update({f"q{round(100 * p):02d}": float(x) for p, x in zip(QUANTILES, q, strict=True)})
+    return out
+
+
+def summarize_modes(system: System, theta, slopes) -> list[dict]:
+    """The modes by increasing frequency (module docstring): ``frequency_hz`` and
+    ``damping_ratio`` (each ``mean``, ``sd``, ``q05`` ... ``q95``), ``shape`` (one number
+    per dof in the system's order, largest entry 1) and ``draws`` (how many draws had
+    every mode underdamped).
+    """
+    omega, zeta, shapes = modal_draws(system, theta, slopes)
+    if omega.shape[0] == 0:
+        return []
+    out = []
+    for j in range(system.n):
+        s = shapes[:, :, j].mean(axis=0)
+        s = s / s[np.argmax(np.abs(s))]
+        out.append({
+            "frequency_hz": _stats(omega[:, j] / (2.0 * np.pi)),
+            "damping_ratio": _stats(zeta[:, j]),
+            "shape": s.round(12).tolist(),
+            "draws": int(omega.shape[0]),
+        })  # fmt: skip
+    return out

@@ -1,0 +1,96 @@
+"""The modal view of a system (:mod:`hosid.model.modal`).
+
+Oracles: the two-spring chain's modes by hand (a linear system: both linearisations are
+the system, 1e-12), the single oscillator's :math:`\\omega = \\sqrt{k/m}`, :math:`\\zeta =
+c/2\\sqrt{km}`, the cubic stiffness's slope :math:`3\\overline{r^2}` and the quadratic
+damping's eq (65) factor :math:`\\sqrt{8/\\pi}\\sigma`, and the summary's quantiles against
+numpy's over the same draws.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from hosid.model.linear_chain import modes
+from hosid.model.modal import (
+    MAX_DRAWS,
+    modal_draws,
+    response_slopes,
+    small_slopes,
+    summarize_modes,
+)
+from hosid.model.system import System
+
+K, ALPHA = 10.0, 0.05
+TWO = System(("x1", "x2"), [(("ground", "x1"), ("linear",)), (("x1", "x2"), ("linear",))])
+THETA2 = np.array([ALPHA * K, K, ALPHA * K, K, 1.0, 1.0, 1.0])
+NONLINEAR = System(
+    ("x1", "x2"),
+    [(("ground", "x1"), ("linear_damping", "quadratic_damping", "linear_stiffness",
+                         "cubic_stiffness")),
+     (("x1", "x2"), ("linear_damping", "linear_stiffness"))],
+)  # fmt: skip
+
+
+def test_linear_chain_modes_are_the_linear_parts():
+    m = modes(TWO, THETA2)
+    for slopes in (small_slopes(TWO), response_slopes(TWO, np.ones((2, 10)), [1.0, 2.0])):
+        omega, zeta, shapes = modal_draws(TWO, THETA2, slopes)
+        np.testing.assert_allclose(omega[0], m.omega, rtol=1e-12)
+        np.testing.assert_allclose(zeta[0], m.zeta, rtol=1e-10)
+        np.testing.assert_allclose(shapes[0], m.shapes.real, atol=1e-12)
+    golden = (1 + math.sqrt(5)) / 2
+    (first, second) = summarize_modes(TWO, THETA2[None, None], small_slopes(TWO))
+    np.testing.assert_allclose(first["shape"], [1 / golden, 1.0], atol=1e-12)
+    np.testing.assert_allclose(second["shape"], [1.0, -1 / golden], atol=1e-12)
+
+
+def test_single_oscillator_frequency_and_damping_ratio():
+    s = System(("x",), [(("ground", "x"), ("linear",))], single_names=True)
+    c, k = 0.4, 25.0
+    omega, zeta, shapes = modal_draws(s, [c, k, 1.0], small_slopes(s))
+    assert omega[0, 0] == pytest.approx(math.sqrt(k), rel=1e-12)
+    assert zeta[0, 0] == pytest.approx(c / (2 * math.sqrt(k)), rel=1e-12)
+    assert shapes[0, 0, 0] == 1.0
+
+
+def test_response_slopes_of_the_nonlinear_terms():
+    rng = np.random.default_rng(3)
+    r = rng.normal(0.0, [[0.7], [0.2]], size=(2, 5000))
+    gamma = response_slopes(NONLINEAR, r, [1.5, 0.4])
+    names = [t.name for _, t in NONLINEAR.columns]
+    expect = {
+        "linear_damping": 1.0,
+        "quadratic_damping": math.sqrt(8 / math.pi) * 1.5,
+        "linear_stiffness": 1.0,
+        "cubic_stiffness": 3 * np.mean(r[0] ** 2),
+    }
+    np.testing.assert_allclose(gamma, [expect[n] for n in names], rtol=1e-12)
+    np.testing.assert_array_equal(small_slopes(NONLINEAR), [1, 0, 1, 0, 1, 1])
+
+
+def test_summary_over_draws():
+    """A stiffer ground spring in some draws: the summary's statistics are numpy's over
+    the draws' frequencies; more draws than MAX_DRAWS are thinned evenly."""
+    rng = np.random.default_rng(5)
+    theta = np.tile(THETA2, (3, 3000, 1))
+    theta[..., 1] *= rng.uniform(0.9, 1.1, size=(3, 3000))
+    (first, _) = summarize_modes(TWO, theta, small_slopes(TWO))
+    omega, _, _ = modal_draws(TWO, theta, small_slopes(TWO))
+    assert omega.shape[0] == first["draws"] == MAX_DRAWS
+    f = omega[:, 0] / (2 * math.pi)
+    got = first["frequency_hz"]
+    assert got["mean"] == pytest.approx(f.mean(), rel=1e-12)
+    assert got["sd"] == pytest.approx(f.std(ddof=1), rel=1e-12)
+    assert [got[k] for k in ("q05", "q50", "q95")] == pytest.approx(
+        np.quantile(f, [0.05, 0.5, 0.95]).tolist(), rel=1e-12
+    )
+    assert max(abs(v) for v in first["shape"]) == pytest.approx(1.0)
+
+
+def test_overdamped_draws_are_left_out():
+    theta = np.stack([THETA2, THETA2 * [100, 1, 1, 1, 1, 1, 1]])  # the second overdamped
+    omega, _, _ = modal_draws(TWO, theta, small_slopes(TWO))
+    assert omega.shape == (1, 2)
+    assert summarize_modes(TWO, theta[1:], small_slopes(TWO)) == []
