@@ -293,7 +293,9 @@ def test_without_figure_processes_the_files_are_the_same(
     assert cli.main([*argv, "--out", str(tmp_path / "a")]) == 0
     monkeypatch.setenv("HOSID_FIGURE_PROCESSES", "0")
     assert cli.main([*argv, "--out", str(tmp_path / "b")]) == 0
-    for stem in STEMS:
+    drawn = [s for s in STEMS if (tmp_path / "a" / f"{s}.png").is_file()]
+    assert drawn == [s for s in STEMS if s != "mode_shapes"]  # a single oscillator's
+    for stem in drawn:
         png = f"{stem}.png"
         assert (tmp_path / "a" / png).read_bytes() == (tmp_path / "b" / png).read_bytes(), stem
     names = [sorted(p.name for p in (tmp_path / d).iterdir()) for d in "ab"]

@@ -241,4 +241,5 @@ def test_command_line_simulates_and_fits_a_system(tmp_path, chain_file, capsys):
     assert "mass[x2] ẍ_x2 + (a1[x1-x2] ṙ + a2[x1-x2] r)(r = x2 - x1) = F_x2" in report
     assert "integrated in time above" in report
     assert '<table id="modes">' in report and len(summary["modes"]) == 2
+    assert (out / "mode_shapes.png").read_bytes()[:4] == b"\x89PNG"
     capsys.readouterr()

@@ -272,3 +272,31 @@ def trace_plot(tree: xr.DataTree, *, max_walkers: int = 6) -> Figure:
         f"Traces of {len(chains)} of {n_chain} walkers\n{fit_title(tree)}", fontsize=9
     )
     return fig
+
+
+def mode_shapes_plot(tree: xr.DataTree) -> Figure | None:
+    """A system's mode shapes drawn along the chain (the ground at 0, then its dofs in
+    the system's order), one panel a mode: at the record's response level (solid) and at
+    small amplitude (dashed), titled with the frequency and damping ratio; ``None`` for a
+    single oscillator (:mod:`hosid.model.modal`).
+    """
+    modes, small = attr(tree, "modes") or [], attr(tree, "modes_small_amplitude") or []
+    dofs = (attr(tree, "system") or {}).get("dofs") or []
+    if not modes or len(dofs) < 2:
+        return None
+    fig = Figure(figsize=(min(2.2 * len(modes) + 1.0, 12.0), 3.8), layout="constrained")
+    axes = fig.subplots(1, len(modes), sharey=True, squeeze=False)[0]
+    levels = np.arange(len(dofs) + 1)
+    for k, (ax, m) in enumerate(zip(axes, modes, strict=True)):
+        ax.plot([0.0, *m["shape"]], levels, "o-", color="C0", label="response level")
+        if k < len(small):
+            ax.plot([0.0, *small[k]["shape"]], levels, "s--", color="C1", label="small amplitude")
+        ax.axvline(0.0, color="0.7", lw=0.8)
+        f, z = m["frequency_hz"]["mean"], m["damping_ratio"]["mean"]
+        ax.set_title(f"mode {k + 1}: {f:.4g} Hz, ζ {z:.3g}", fontsize=9)
+        ax.set_xlim(-1.15, 1.15)
+        ax.set_xlabel("shape")
+    axes[0].set_yticks(levels, ["ground", *dofs])
+    axes[0].legend(fontsize=7, loc="lower left")
+    fig.suptitle(f"Mode shapes\n{fit_title(tree)}", fontsize=9)
+    return fig

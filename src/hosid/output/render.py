@@ -46,7 +46,7 @@ __all__ = ["SHARES", "TIMEOUT", "FigureError", "FigureProcesses", "enabled"]
 #: The figures of each process, by stem: the corner plot takes about as long as the rest.
 SHARES = (
     ("corner",),
-    ("likelihood_map", "restoring_force", "trace", "spectrum", "force_spectrum"),
+    ("likelihood_map", "restoring_force", "trace", "spectrum", "force_spectrum", "mode_shapes"),
 )
 #: Seconds the command waits for the figures once it has handed over the fit.
 TIMEOUT = 300.0

@@ -40,7 +40,15 @@ _PROVENANCE = (
 )
 
 #: The report's figures by file stem, in the page's order.
-STEMS = ("corner", "likelihood_map", "restoring_force", "trace", "spectrum", "force_spectrum")
+STEMS = (
+    "corner",
+    "likelihood_map",
+    "restoring_force",
+    "trace",
+    "spectrum",
+    "force_spectrum",
+    "mode_shapes",
+)
 
 
 def _plots() -> dict[str, Callable[[xr.DataTree], Figure | None]]:
@@ -54,6 +62,7 @@ def _plots() -> dict[str, Callable[[xr.DataTree], Figure | None]]:
         "trace": plots.trace_plot,
         "spectrum": spectrum_plots.spectrum_plot,
         "force_spectrum": spectrum_plots.force_spectrum_plot,
+        "mode_shapes": plots.mode_shapes_plot,
     }
 
 
@@ -72,6 +81,8 @@ CAPTIONS = {
     "force_spectrum": "The force inferred from the record at the estimate (eq 45) against "
     "the excitation model S0 L(omega): posterior median and 5-95 % band.  Where they part, "
     "the excitation model does not describe the record.",
+    "mode_shapes": "Mode shapes along the chain (posterior mean), of the system linearised "
+    "at the record's response level (solid) and of its linear terms alone (dashed).",
 }
 
 # the drift terms as they read in the equation of motion
