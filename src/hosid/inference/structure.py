@@ -113,8 +113,7 @@ def modal(est, theta: np.ndarray) -> dict:
     from ..components.chain_features import relative
     from ..model.modal import LINEARISATION, response_slopes, small_slopes, summarize_modes
 
-    r, _ = relative(est.state, structure)
-    slopes = response_slopes(structure, r, est.sigma_v)
+    slopes = response_slopes(structure, *relative(est.state, structure))
     return {
         "modes": summarize_modes(structure, theta, slopes),
         "modes_small_amplitude": summarize_modes(structure, theta, small_slopes(structure)),
