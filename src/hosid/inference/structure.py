@@ -102,18 +102,26 @@ def observed(est, theta: np.ndarray, omega_max: float | None) -> dict[str, np.nd
 
 
 def modal(est, theta: np.ndarray) -> dict:
-    """A system's modal view over the posterior draws ``theta`` ``(..., p)``
+    """The modal view over the posterior draws ``theta`` ``(..., p)``
     (:mod:`hosid.model.modal`): the attributes ``modes`` (at the record's response level),
-    ``modes_small_amplitude`` and ``modes_linearisation``; none for a single oscillator's
-    model.
+    ``modes_small_amplitude`` and ``modes_linearisation``.  A single oscillator's model is
+    its one-element chain's drift (the excitation's own parameters play no part).
     """
-    structure = est.model
-    if not isinstance(structure, System):
-        return {}
-    from ..components.chain_features import relative
     from ..model.modal import LINEARISATION, response_slopes, small_slopes, summarize_modes
 
-    slopes = response_slopes(structure, *relative(est.state, structure))
+    structure = est.model
+    if isinstance(structure, System):
+        from ..components.chain_features import relative
+
+        r, rd = relative(est.state, structure)
+    else:
+        drift = tuple(t.name for t in structure.drift_terms if t.variable in ("x", "v"))
+        if not drift:
+            return {}
+        one = System(("x",), [(("ground", "x"), drift)], single_names=True)
+        theta = np.asarray(theta)[..., [structure.param_names.index(n) for n in one.param_names]]
+        structure, r, rd = one, est.state.x[None], est.state.v[None]
+    slopes = response_slopes(structure, r, rd)
     return {
         "modes": summarize_modes(structure, theta, slopes),
         "modes_small_amplitude": summarize_modes(structure, theta, small_slopes(structure)),
