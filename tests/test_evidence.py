@@ -181,3 +181,27 @@ def test_null_min_p_stops_once_the_decision_is_known(clean):
         reps, model, ["quadratic_stiffness", "excitation_mean"], start, stop=(1.0, 0)
     )
     assert stopped.shape == (1,)
+
+
+def test_null_covariances_pool_only_replicates_with_the_same_equations(monkeypatch):
+    """A replicate whose state gave other null equations (another band: 12 labels instead
+    of 8) is left out of the pool instead of failing the round (it failed with a shape
+    error); the pooled covariance is that of the matching replicates, by hand."""
+    import numpy as np
+
+    from hosid.check import selection
+    from hosid.components.base import Moments
+
+    rng = np.random.default_rng(0)
+    blocks = [rng.standard_normal((20, k)) for k in (8, 12, 8)]
+
+    def fake(rep, model, c, start, st):
+        U = blocks[rep]
+        return [Moments("m", tuple(f"e{i}" for i in range(U.shape[1])), lambda t: t, U, {})]
+
+    monkeypatch.setattr(selection, "null_moments", fake)
+    out = selection.null_covariances([0, 1, 2], None, ["cubic_stiffness"], {})
+    cov = out["cubic_stiffness"]
+    U0, U2 = blocks[0], blocks[2]
+    np.testing.assert_allclose(cov.S, (U0.T @ U0 + U2.T @ U2) / 38, rtol=1e-12)
+    assert cov.dof == 38 and len(cov.labels) == 8

@@ -166,7 +166,8 @@ def null_covariances(
     :math:`\sum_r (B_r - 1)` degrees of freedom (:mod:`hosid.check.evidence`).  Not for a candidate
     whose equations move with its own value (the coloured force's corner, an impulse
     rate), nor from
-    fewer than two records.
+    fewer than two records; a replicate whose equations are not the first one's (its state
+    chose another band, so other labels) is left out of the pool.
     """
     states = [{} for _ in replicates]
     out = {}
@@ -180,7 +181,10 @@ def null_covariances(
             except (HosidInputError, ValueError):
                 continue
             U = np.concatenate([m.influence for m in moments], axis=1)
-            labels = tuple(lab for m in moments for lab in m.labels)
+            these = tuple(lab for m in moments for lab in m.labels)
+            if labels is not None and these != labels:
+                continue  # a replicate whose state gave other equations (e.g. a band edge)
+            labels = these
             S, dof, used = S + U.T @ U, dof + U.shape[0] - 1, used + 1
         if used >= 2:
             out[c] = BlockCovariance(S / dof, dof, labels, f"{used} simulated records")
