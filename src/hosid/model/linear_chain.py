@@ -37,7 +37,15 @@ from scipy import linalg
 from ..errors import HosidInputError
 from .system import System
 
-__all__ = ["Modes", "linearize", "modes", "state_matrices", "stationary_covariance"]
+__all__ = [
+    "Modes",
+    "eigenmodes",
+    "linearize",
+    "modes",
+    "state_matrices",
+    "state_matrix",
+    "stationary_covariance",
+]
 
 
 def linearize(system: System, theta=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -59,17 +67,26 @@ def linearize(system: System, theta=None) -> tuple[np.ndarray, np.ndarray, np.nd
     return np.diag(system.mass_vector(th)), B.T @ (c[:, None] * B), B.T @ (k[:, None] * B)
 
 
+def state_matrix(minv: np.ndarray, C: np.ndarray, K: np.ndarray) -> np.ndarray:
+    r"""The state matrix :math:`A`, ``(2n, 2n)``, of :math:`M^{-1}` (its diagonal
+    ``minv``), :math:`C` and :math:`K` (module docstring).
+    """
+    n = minv.size
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -minv[:, None] * K
+    A[n:, n:] = -minv[:, None] * C
+    return A
+
+
 def state_matrices(system: System, theta=None) -> tuple[np.ndarray, np.ndarray]:
     r"""The linearised state matrix :math:`A` and the noise's covariance per unit time
     :math:`Q`, each ``(2n, 2n)``, state :math:`(q, \dot q)` (module docstring).
     """
     M, C, K = linearize(system, theta)
-    n = system.n
     minv = 1.0 / np.diag(M)
-    A = np.zeros((2 * n, 2 * n))
-    A[:n, n:] = np.eye(n)
-    A[n:, :n] = -minv[:, None] * K
-    A[n:, n:] = -minv[:, None] * C
+    A = state_matrix(minv, C, K)
+    n = system.n
     Q = np.zeros_like(A)
     Q[n:, n:] = np.diag(2.0 * np.pi * system.levels(system.vector(theta)) * minv**2)
     return A, Q
@@ -117,12 +134,19 @@ def modes(system: System, theta=None) -> Modes:
     eigenvalues) has no frequency and is left out of ``omega`` (its eigenvalues stay in
     ``eigenvalues``).
     """
-    A, _ = state_matrices(system, theta)
+    return eigenmodes(state_matrices(system, theta)[0])
+
+
+def eigenmodes(A: np.ndarray) -> Modes:
+    r"""The underdamped modes of the state matrix ``A`` (``(2n, 2n)``, state :math:`(q,
+    \dot q)`): :class:`Modes` by increasing frequency (:func:`modes`).
+    """
+    n = A.shape[0] // 2
     lam, vec = linalg.eig(A)
     order = np.argsort(np.abs(lam), kind="stable")
     lam, vec = lam[order], vec[:, order]
     keep = lam.imag > 1e-12 * np.maximum(np.abs(lam), 1e-300)
-    shapes = vec[: system.n, keep]
+    shapes = vec[:n, keep]
     big = shapes[np.argmax(np.abs(shapes), axis=0), np.arange(shapes.shape[1])]
     omega = np.abs(lam[keep])
     return Modes(omega, -lam[keep].real / omega, shapes / big, lam)

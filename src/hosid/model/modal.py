@@ -34,8 +34,8 @@ across draws by the order of their frequencies.
 from __future__ import annotations
 
 import numpy as np
-from scipy import linalg
 
+from .linear_chain import eigenmodes, state_matrix
 from .system import System
 
 __all__ = ["MAX_DRAWS", "modal_draws", "response_slopes", "small_slopes", "summarize_modes"]
@@ -85,7 +85,8 @@ def modal_draws(system: System, theta, slopes) -> tuple[np.ndarray, np.ndarray, 
     flat = _thin(theta)
     gamma = np.asarray(slopes, dtype=float)
     B = system.incidence
-    n, E = system.n, len(system.elements)
+    E = len(system.elements)
+    n = system.n
     is_v = np.array([t.variable == "v" for _, t in system.columns])
     is_x = np.array([t.variable == "x" for _, t in system.columns])
     elem = np.array([e for e, _ in system.columns], dtype=int)
@@ -95,21 +96,12 @@ def modal_draws(system: System, theta, slopes) -> tuple[np.ndarray, np.ndarray, 
         c = np.bincount(elem, weights=th[:nd] * gamma * is_v, minlength=E)
         k = np.bincount(elem, weights=th[:nd] * gamma * is_x, minlength=E)
         minv = 1.0 / system.mass_vector(th)
-        A = np.zeros((2 * n, 2 * n))
-        A[:n, n:] = np.eye(n)
-        A[n:, :n] = -minv[:, None] * (B.T @ (k[:, None] * B))
-        A[n:, n:] = -minv[:, None] * (B.T @ (c[:, None] * B))
-        lam, vec = linalg.eig(A)
-        keep = lam.imag > 1e-12 * np.maximum(np.abs(lam), 1e-300)
-        if keep.sum() != n:
+        m = eigenmodes(state_matrix(minv, B.T @ (c[:, None] * B), B.T @ (k[:, None] * B)))
+        if m.omega.size != n:
             continue
-        lam, vec = lam[keep], vec[:n, keep]
-        order = np.argsort(np.abs(lam), kind="stable")
-        lam, vec = lam[order], vec[:, order]
-        vec = vec / vec[np.argmax(np.abs(vec), axis=0), np.arange(n)]
-        omegas.append(np.abs(lam))
-        zetas.append(-lam.real / np.abs(lam))
-        shapes.append(vec.real)
+        omegas.append(m.omega)
+        zetas.append(m.zeta)
+        shapes.append(m.shapes.real)
     if not omegas:
         return np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, n, n))
     return np.array(omegas), np.array(zetas), np.array(shapes)
