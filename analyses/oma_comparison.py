@@ -124,6 +124,8 @@ def run_one(case: str, i: int) -> dict:
             for x, name in (("f", "frequency_hz"), ("z", "damping_ratio")):
                 row[f"{x}{j}_{kind}"] = m[name]["mean"]
                 row[f"{x}{j}_{kind}_sd"] = m[name]["sd"]
+                row[f"{x}{j}_{kind}_q05"] = m[name]["q05"]
+                row[f"{x}{j}_{kind}_q95"] = m[name]["q95"]
     for p in LAWS:
         if p in summ["parameters"]:
             row[p] = summ["parameters"][p]["mean"]
@@ -184,11 +186,31 @@ def summarize_rows(rows: list[dict], out: Path) -> Path:
             continue
         cells = [f"{col(rs, p).mean():.4g} ± {col(rs, p + '_sd').mean():.2g}" for p in LAWS]
         lines.append(f"| {case} | " + " | ".join(cells) + " |")
+    lines += _coverage(rows)
     conv = sum(int(r["converged"]) for r in rows)
     lines += ["", f"hosid's fits converged (R-hat < 1.01, ESS >= 400): {conv}/{len(rows)}."]
     path = out / "oma_comparison.md"
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def _coverage(rows: list[dict]) -> list[str]:
+    """Lines: in how many records hosid's 90 % interval of each mode's frequency and
+    damping ratio holds the truth at the response level (rows that carry the intervals).
+    """
+    out = []
+    for case in CASES:
+        rs = [r for r in rows if r["case"] == case and r.get("f0_hosid_q05") not in (None, "")]
+        if not rs:
+            continue
+        cells = []
+        for j in range(2):
+            for x, what in (("f", "frequency"), ("z", "damping ratio")):
+                held = sum(float(r[f"{x}{j}_hosid_q05"]) <= float(r[f"{x}{j}_truth"])
+                           <= float(r[f"{x}{j}_hosid_q95"]) for r in rs)  # fmt: skip
+                cells.append(f"mode {j + 1} {what} {held}/{len(rs)}")
+        out.append(f"- {case}: hosid's 90 % intervals hold the truth: " + ", ".join(cells) + ".")
+    return ["", "Coverage of the modes (truth at the response level):", "", *out] if out else []
 
 
 def main(argv: Sequence[str] | None = None) -> Path:

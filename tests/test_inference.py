@@ -182,7 +182,9 @@ def test_gmm_calibration_is_the_curvature(short_estimate):
 
 
 def test_rejected_hansen_test_widens_the_posterior(short_estimate):
-    est = dataclasses.replace(short_estimate, test={"J": 20.0, "df": 4, "p_value": 5e-4})
+    est = dataclasses.replace(
+        short_estimate, test={"J": 20.0, "df": 4, "p_value": 5e-4, "dispersion": 5.0}
+    )
     cal = calibrate(est)
     assert cal.dispersion == pytest.approx(5.0)
     np.testing.assert_allclose(cal.cov, 5.0 * est.cov)

@@ -9,6 +9,7 @@ channels against the simulated velocity (its samples exactly) and the Lyapunov v
 of the displacement; a 2-dof fit within 4 posterior sds of its truth.  Fixed seeds.
 """
 
+import dataclasses
 import json
 
 import numpy as np
@@ -149,6 +150,28 @@ def test_identities_hold_at_the_truth_on_a_simulated_record(measured):
     se = m.influence.std(axis=0, ddof=1) / np.sqrt(m.influence.shape[0])
     z = m.mean(system.vector()) / se
     assert np.all(np.abs(z) < 4.0), dict(zip(m.labels, z.round(2), strict=True))
+
+
+def test_spectral_equations_are_standardized_alike_in_any_units():
+    # the record three times larger, with its levels nine times larger: the cross-spectra
+    # of the inferred forces are dimensionless (the same means and block influences), the
+    # levels' equations (weighted by d h / d S0) scale by 1/9, means and influences alike.
+    # The cross-spectra's influences were once not divided by sqrt(S0_d S0_e): variance
+    # 4x too large at S0 = 2, 50x at LINEAR2's levels.
+    system = LINEAR2
+    rec = simulate_chain(system, duration=600.0, dt=DT, rng=np.random.default_rng(8))
+    big = dataclasses.replace(rec, x=3.0 * rec.x)
+    theta = system.vector()
+    scaled = theta.copy()
+    for d in system.dofs:
+        scaled[system.index(f"S0[{d}]")] *= 9.0
+    a = ChainJ2().prepare(ChainState.from_record(rec), system, theta)
+    b = ChainJ2().prepare(ChainState.from_record(big), system, scaled)
+    assert a.labels == ("J2 d/dS0[x1]", "J2 d/dS0[x2]", "J2 cross x1-x2 re",
+                        "J2 cross x1-x2 im")  # fmt: skip
+    units = np.array([1 / 9, 1 / 9, 1.0, 1.0])
+    np.testing.assert_allclose(b.mean(scaled), units * a.mean(theta), rtol=1e-9)
+    np.testing.assert_allclose(b.influence, units * a.influence, rtol=1e-9, atol=1e-15)
 
 
 def test_acceleration_channels_hold_the_velocity_samples():

@@ -42,7 +42,8 @@ above the Nyquist frequency that the record does not see, and adds little (a rou
 estimate at the paper's point, the energy balance known to 2 %: an sd of
 :math:`1/\omega_c^2` some 20 times the tail's near 5 sd).  When
 Hansen's test of the free fit rejects (:data:`hosid.inference.calibrate.HANSEN_P`) both
-numbers are deflated by its dispersion :math:`J/(k - p)`, as the posterior is widened.
+numbers are deflated by its dispersion (:func:`hosid.inference.gmm.hansen_test`), as the
+posterior is widened.
 
 **The weight.**  By default the equations' covariance is that of the record's own
 :math:`B` blocks (:func:`hosid.inference.gmm.quasi_likelihood`): 38 degrees of freedom
@@ -78,12 +79,18 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from ..errors import HosidInputError
 from ..inference.calibrate import HANSEN_P
 from ..inference.estimate import estimate, log_params, typical_scale
-from ..inference.gmm import BlockCovariance, Transformed, j_difference, quasi_likelihood, solve
+from ..inference.gmm import (
+    BlockCovariance,
+    Transformed,
+    hansen_test,
+    j_difference,
+    quasi_likelihood,
+    solve,
+)
 from ..model.coordinates import COORDINATES, WHITE_CORNER, Coordinate, critical_z, param_sd
 from ..model.excitation import Spectrum
 from ..model.model import Model, get_term
@@ -272,10 +279,9 @@ def weigh(
         raise HosidInputError(f"{effect}: {exc}") from None
     if not np.all(np.isfinite(u)):
         raise HosidInputError(f"{effect}: the estimating equations have no finite solution")
-    J = float(-2.0 * qlu(u))
-    df = ql.k - len(names)
-    p_hansen = float(stats.chi2.sf(J, df)) if df > 0 else math.nan
-    disp = J / df if df > 0 and p_hansen < HANSEN_P else 1.0
+    t = hansen_test(float(-2.0 * qlu(u)), ql.k - len(names), ql.info)
+    J, df, p_hansen = t["J"], t["df"], t["p_value"]
+    disp = max(t["dispersion"], 1.0) if df > 0 and p_hansen < HANSEN_P else 1.0
     cov = qlu.laplace(u, scale) * disp
     sd_u = np.sqrt(np.maximum(np.diag(cov), 0.0))
     z = float(u[i] / sd_u[i]) if u[i] != 0.0 and sd_u[i] > 0 else 0.0

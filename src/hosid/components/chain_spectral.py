@@ -118,7 +118,7 @@ class ChainJ2:
         if self.cross:
             for i, d in enumerate(driven):
                 for e in driven[i + 1 :]:
-                    mean, u = _cross(Xs[d], Xs[e], system, d, e, norm)
+                    mean, u = _cross(Xs[d], Xs[e], system, d, e, norm, th0)
                     parts.append(mean)
                     infl.append(u)
                     pair = f"{system.dofs[d]}-{system.dofs[e]}"
@@ -187,8 +187,10 @@ def _level_u(Y, Ld, system: System, d: int, th0, norm):
     return mean, u, X0
 
 
-def _cross(first, second, system: System, d: int, e: int, norm):
-    """The cross-spectrum equations of dofs ``d`` and ``e`` (module docstring)."""
+def _cross(first, second, system: System, d: int, e: int, norm, th0):
+    """The cross-spectrum equations of dofs ``d`` and ``e`` (module docstring) and their
+    block values at the pilot ``th0``.
+    """
     (Yd, Ld, Xd), (Ye, Le, Xe) = first, second
     K = Yd.shape[-1]
     shp = np.ones(K) if Ld is None and Le is None else np.sqrt(
@@ -204,14 +206,8 @@ def _cross(first, second, system: System, d: int, e: int, norm):
         z = z / np.sqrt(th[..., i_d] * th[..., i_e])
         return np.stack([z.real, z.imag], axis=-1)
 
-    return mean, _cross_blocks(Xd, Xe, shp, norm, K, system, d, e)
-
-
-def _cross_blocks(Xd, Xe, shp, norm, K, system, d, e):
-    """Block values of the cross-spectrum equations at the pilot (its force transforms)."""
-    del system, d, e
-    z = np.sum(Xd * Xe.conj() / shp, axis=-1) / (K * norm)
-    return np.stack([z.real, z.imag], axis=-1)
+    z = np.sum(Xd * Xe.conj() / shp, axis=-1) / (K * norm * math.sqrt(th0[i_d] * th0[i_e]))
+    return mean, np.stack([z.real, z.imag], axis=-1)
 
 
 @dataclass(frozen=True)

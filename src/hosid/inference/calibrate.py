@@ -91,7 +91,7 @@ def calibrate(est: Estimate) -> Calibrated:
     numbers = {**est.ql.info, "hansen": est.test}
     disp = 1.0
     if est.test["df"] > 0 and est.test["p_value"] < HANSEN_P:
-        disp = est.test["J"] / est.test["df"]
+        disp = max(est.test["dispersion"], 1.0)
         numbers["note"] = (
             f"Hansen's test rejects the model (J = {est.test['J']:.1f} on "
             f"{est.test['df']} df): posterior widened by sqrt({disp:.2f})"
