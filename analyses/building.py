@@ -1,0 +1,399 @@
+r"""A five-storey building under a roof shaker: input-output reference, SSI and hosid (issue 33).
+
+The Unison Tower's ``wn_01.dat`` (409.6 s at 100 Hz; see its folder's README): a 1.5 t mass
+damper on the roof driven as a shaker, an accelerometer on every floor.  Its first two
+bending modes (``BANDS``) three ways:
+
+- **Input-output reference.**  H1 from the force (1.5 t x the damper's acceleration, kN) to
+  the floors and the coherence (Hann windows of 81.92 s, 9 averages).  A mode is a_j/f =
+  A_j (-w^2) / (w_r^2 - w^2 + 2i z_r w_r w) + R_j over its band, jointly over the floors,
+  A_j real (its shape), by variable projection.  The reference fits it to the raw records
+  in the time domain (each floor predicted from the measured force, both band-passed): the
+  fit of the FRFs (the model smoothed by the Hann kernel, weights from the coherence),
+  shown beside it, moves with the window; the time-domain fit holds over the record's
+  quarters, whose standard error is its uncertainty (the FRF fit's: its halves').
+- **SSI-cov** (``koma.oma.covssi``, ``pip install --no-deps koma-python``) on the floors
+  decimated to 10 Hz, 50 block rows, orders 2-60; stable within 1 % in frequency, 5 % in
+  damping and MAC 0.98 over 3 lower orders; a mode is the median of its stable poles.
+- **hosid**: the floors as acceleration channels (high-passed at 0.2 Hz, as the record
+  check rejects the raw drift; dt = 0.05 s) in ``out/building/floors.npz``, a shear chain
+  fitted by ``hosid.fit`` in each of ``VARIANTS`` (unconstrained again when no start is
+  admissible), failures kept as said; a control on hosid's own simulation of a chain.
+
+    python analyses/building.py [--data PATH] [--quick]   # results/building.md, .csv, .png
+
+The data: ``--data``, ``$HOSID_BUILDING`` or ``../shared/data/unison-tower/``; never copied.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import time
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from scipy import optimize, signal
+
+import hosid
+from hosid.model.linear_chain import modes as chain_modes
+from hosid.output.results import summarize
+
+ROOT = Path(__file__).resolve().parent
+RESULTS = ROOT / "results"
+WORK = ROOT / "out" / "building"
+DEFAULT_DATA = ROOT.parent.parent / "shared" / "data" / "unison-tower" / "wn_01.dat"
+VOLTS = np.array([1.0, 9.8, -9.8, 2.0, 2.0, 1.0, 1.0, 2.25 / 9.0])  # to m/s^2, by column
+FLOORS = [4, 5, 6, 3, 2]  # the columns of floors 1..5 (0-based)
+HMD_MASS, DT = 1.5, 0.01  # t, s
+BANDS = ((0.42, 0.65), (1.5, 2.05))  # Hz
+NPERSEG = 8192
+SSI_STEP, BLOCK_ROWS, ORDERS = 10, 50, np.arange(2, 62, 2)
+STABLE = {"freq": 0.01, "damping": 0.05, "mac": 0.02}
+HOSID_STEP, HIGH_PASS = 5, 0.2
+DOFS, TERMS = ("x1", "x2", "x3", "x4", "x5"), ("linear_damping", "linear_stiffness")
+#: name: (driven dofs, masses fixed equal, block seconds)
+VARIANTS = {
+    "roof driven, masses unknown": (["x5"], False, None),
+    "all driven, masses unknown": (list(DOFS), False, None),
+    "all driven, masses unknown, 6.4 s blocks": (list(DOFS), False, 6.4),
+    "roof driven, masses equal": (["x5"], True, None),
+    "all driven, masses equal, 6.4 s blocks": (list(DOFS), True, 6.4),
+}
+
+
+def load(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The HMD force (kN) and the floors' accelerations (m/s^2) ``(N, 5)``, detrended."""
+    a = signal.detrend(np.loadtxt(path) * VOLTS, axis=0)
+    return HMD_MASS * a[:, 1], a[:, FLOORS]
+
+
+def frfs(force, floors, nperseg=NPERSEG):
+    """Frequencies (Hz), H1 ``(5, F)`` and coherence ``(5, F)``."""
+    kw = {"fs": 1 / DT, "window": "hann", "nperseg": nperseg}
+    (_, s_ff), (_, s_aa) = signal.welch(force, **kw), signal.welch(floors.T, axis=-1, **kw)
+    f, s_fa = signal.csd(force[None], floors.T, axis=-1, **kw)
+    return f, s_fa / s_ff, np.abs(s_fa) ** 2 / (s_ff * s_aa)
+
+
+def accelerance(w, wr, z):
+    """One mode's accelerance per unit residue."""
+    return -(w**2) / (wr**2 - w**2 + 2j * z * wr * w)
+
+
+def _project(design, y, weights):
+    """Weighted residuals and real coefficients ``(k, 5)`` of ``design`` for ``y``."""
+    res, coef = [], []
+    for j in range(y.shape[1]):
+        M, t = design * weights[:, j, None], y[:, j] * weights[:, j]
+        if np.iscomplexobj(M):
+            M, t = np.vstack([M.real, M.imag]), np.r_[t.real, t.imag]
+        c = np.linalg.lstsq(M, t, rcond=None)[0]
+        res.append(t - M @ c)
+        coef.append(c)
+    return np.concatenate(res), np.array(coef).T
+
+
+def _modal_fit(design, y, weights, band, start=None) -> dict:
+    """``(w_r, z_r)`` by least squares over ``band`` (Hz), from ``start`` or a grid."""
+    lo, hi = 2 * math.pi * np.array(band)
+    starts = [start] if start is not None else [(w, 0.02) for w in np.linspace(lo, hi, 7)[1:-1]]
+
+    def residual(p):
+        return _project(design(p), y, weights)[0]
+
+    fits = [optimize.least_squares(residual, s, bounds=([lo, 1e-4], [hi, 0.3]),
+                                   x_scale=[0.1, 0.01]) for s in starts]  # fmt: skip
+    p = min(fits, key=lambda r: r.cost).x
+    coef = _project(design(p), y, weights)[1]
+    shape = coef[0] / coef[0][np.argmax(np.abs(coef[0]))]
+    return {"wa": p[0], "f": p[0] / (2 * math.pi), "zeta": p[1], "shape": shape, "coef": coef}
+
+
+def frf_fit(force, floors, band, nperseg=NPERSEG) -> dict:
+    """One mode from H1, the model smoothed by the Hann window's kernel |W|^2 (on an
+    8-times finer grid, +-6 bins), weighted by H1's standard error from the coherence."""
+    f, H, coh = frfs(force, floors, nperseg)
+    sel = (f >= band[0]) & (f <= band[1])
+    g, Hs = np.clip(coh[:, sel].T, 1e-3, 0.999), H[:, sel].T
+    weights = np.sqrt((2 * len(force) // nperseg - 1) * 2 * g / (1 - g)) / np.abs(Hs)
+    W = np.abs(np.fft.fft(signal.get_window("hann", nperseg), 8 * nperseg)) ** 2
+    k = np.arange(-48, 49)
+    K = W[k % W.size] / W[k % W.size].sum()
+    w = 2 * math.pi * (f[sel][:, None] + k[None] / (8 * nperseg * DT))
+
+    def design(p):
+        return np.column_stack([(K * accelerance(w, *p)).sum(1), np.ones(sel.sum())])
+
+    return _modal_fit(design, Hs, weights, band)
+
+
+def time_fit(force, floors, band, start=None, part=4) -> dict:
+    """One mode by the output-error fit (the accelerance's bilinear transform, ``wa``
+    pre-warped back to ``f``) on the record but its ends, or its quarter ``part``."""
+    sos = signal.butter(4, band, "bandpass", fs=1 / DT, output="sos")
+    u, y = signal.sosfiltfilt(sos, force), signal.sosfiltfilt(sos, floors, axis=0)
+    m = (len(u) - 6000) // 4
+    keep = slice(3000, -3000) if part == 4 else slice(3000 + part * m, 3000 + (part + 1) * m)
+
+    def design(p):
+        den = [1, 2 * p[1] * p[0], p[0] ** 2]
+        num, den, _ = signal.cont2discrete(([1, 0, 0], den), DT, method="bilinear")
+        return np.column_stack([signal.lfilter(num.ravel(), den, u), u])[keep]
+
+    out = _modal_fit(design, y[keep], np.ones(y[keep].shape), band, start)
+    out["f"] = 2 / DT * math.atan(out["wa"] * DT / 2) / (2 * math.pi)
+    return out
+
+
+def reference(force, floors) -> list[dict]:
+    """Per mode: the time-domain fit, its quarters, the FRF fit, its halves and windows,
+    the coherence near the mode (mean over the floors within 3 % of f); for mode 1 both
+    fits on a simulated mode (``sim``)."""
+    out, n = [], len(force)
+    f, _, coh = frfs(force, floors)
+    for band in BANDS:
+        ref = time_fit(force, floors, band)
+        ref["parts"] = [time_fit(force, floors, band, (ref["wa"], ref["zeta"]), i)
+                        for i in range(4)]  # fmt: skip
+        fr = frf_fit(force, floors, band)
+        fr["parts"] = [frf_fit(force[s], floors[s], band)
+                       for s in (slice(n // 2), slice(n // 2, n))]  # fmt: skip
+        for m, key in ((m, key) for m in (ref, fr) for key in ("f", "zeta")):
+            m[f"{key}_err"] = np.std([p[key] for p in m["parts"]], ddof=1) / len(m["parts"]) ** 0.5
+        fr["windows"] = {n: frf_fit(force, floors, band, n)["zeta"] for n in (4096, 16384)}
+        near = np.abs(f - ref["f"]) <= 0.03 * ref["f"]
+        out.append({**ref, "frf": fr, "coherence": float(coh[:, near].mean()), "band": band})
+    # both fits on floors made from the measured force through mode 1 at 2 %, 10 % noise
+    r, z = out[0], 0.02
+    tf = signal.cont2discrete(([1, 0, 0], [1, 2 * z * r["wa"], r["wa"] ** 2]), DT, "bilinear")
+    y = signal.lfilter(tf[0].ravel(), tf[1], force)[:, None] * r["coef"][0][None]
+    y = y + 0.1 * y.std() * np.random.default_rng(0).standard_normal(y.shape)
+    r["sim"] = [time_fit(force, y, BANDS[0])["zeta"], frf_fit(force, y, BANDS[0])["zeta"]]
+    return out
+
+
+def ssi(floors) -> list[dict]:
+    """The modes in ``BANDS`` by SSI-cov and the stabilisation rule (module docstring)."""
+    from koma.oma import covssi, find_stable_poles
+
+    y = signal.detrend(signal.decimate(floors, SSI_STEP, axis=0, ftype="fir"), axis=0)
+    lam, phi, orders = covssi(y, 1 / (DT * SSI_STEP), BLOCK_ROWS, ORDERS, showinfo=False)
+    lam, phi, orders, _ = find_stable_poles(lam, phi, orders, 3, STABLE, {"damping": [0, 0.2]})
+    f, z = np.abs(lam) / (2 * math.pi), -lam.real / np.abs(lam)
+    out = []
+    for band in BANDS:
+        i = np.flatnonzero((f >= band[0]) & (f <= band[1]))
+        v = phi[:, i[np.argmin(np.abs(f[i] - np.median(f[i])))]] if i.size else None
+        out.append({"f": np.median(f[i]), "zeta": np.median(z[i]), "f_err": np.std(f[i]),
+                    "zeta_err": np.std(z[i]), "shape": (v / v[np.argmax(np.abs(v))]).real,
+                    "note": f"{i.size} stable poles, orders {min(orders[i])}-"
+                    f"{max(orders[i])}"} if i.size else None)  # fmt: skip
+    return out
+
+
+def system_file(driven: Sequence[str], equal: bool, path: Path) -> Path:
+    """The five-storey shear chain's system file."""
+    text = f'dofs = {json.dumps(DOFS)}\ndriven = {json.dumps(driven)}\nmeasured = "acceleration"\n'
+    for a, b in zip(("ground", *DOFS[:-1]), DOFS, strict=True):
+        text += f'[[element]]\nbetween = ["{a}", "{b}"]\nterms = {json.dumps(TERMS)}\n'
+    path.write_text(text + ("[masses]\n" + "".join(f"{d} = 1.0\n" for d in DOFS)) * equal)
+    return path
+
+
+def mac(a, b) -> float:
+    return float(np.dot(a, b) ** 2 / (np.dot(a, a) * np.dot(b, b)))
+
+
+def run_hosid(floors, work: Path, ref: list[dict], *, quick: bool):
+    """The floors as hosid's record (module docstring), ``work/floors.npz``, and ``hosid.fit``
+    of each variant (unconstrained again when no start is admissible; roof-driven if quick)."""
+    sos = signal.butter(4, HIGH_PASS, "highpass", fs=1 / DT, output="sos")
+    y = signal.decimate(signal.sosfiltfilt(sos, floors, axis=0), HOSID_STEP, axis=0,
+                        ftype="fir", zero_phase=True)  # fmt: skip
+    rec = hosid.Record(y, DT * HOSID_STEP, "unison-wn_01", channels=DOFS,
+                       measured=("acceleration",) * len(DOFS))  # fmt: skip
+    record, out = hosid.read_record(hosid.write_record(rec, work / "floors.npz")), []
+    variants = [v for v in VARIANTS.items() if "roof" in v[0] or not quick]
+    for k, (name, (driven, equal, block)) in enumerate(variants):
+        system = hosid.System.from_toml(system_file(driven, equal, work / f"variant{k}.toml"))
+        for constrained in (True, False):
+            row = {"variant": name + ("" if constrained else ", unconstrained")}
+            t0 = time.perf_counter()
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    tree = hosid.fit(record, system, seed=k, progress=False,
+                                     block_seconds=block, constrained=constrained,
+                                     n_walkers=max(32, 2 * len(system.param_names) + 2),
+                                     n_steps=300 if quick else None)  # fmt: skip
+                row.update(_fit_row(tree, ref))
+            except Exception as exc:  # the analysis reports what hosid says
+                row["error"] = f"{type(exc).__name__}: {exc}"
+            out.append({**row, "seconds": time.perf_counter() - t0})
+            print(f"hosid, {row['variant']}: {row.get('error') or row['modes']}", flush=True)
+            if "no admissible starting point" not in row.get("error", ""):
+                break
+    return out
+
+
+def _fit_row(tree, ref) -> dict:
+    """Convergence, Hansen's test, the checks, and the modes of largest MAC with the
+    reference's."""
+    s = summarize(tree, warn=False)
+    p, cal, found = s["parameters"].values(), s["calibration"]["hansen"], s["modes"]
+    return {"converged": s["converged"], "r_hat": f"{max(x['r_hat'] for x in p):.3f}",
+            "ess": f"{min(min(x['ess_bulk'], x['ess_tail']) for x in p):.0f}",
+            "hansen": f"J = {cal['J']:.4g} on {cal['df']} df, p = {cal['p_value']:.2g}",
+            "verdicts": ", ".join(f"{c['name']} {c['status']}" for c in s["checks"]),
+            "modes": ", ".join(f"{m['frequency_hz']['mean']:.3g}" for m in found),
+            "matched": [max(found, key=lambda m: mac(m["shape"], r["shape"]))
+                        for r in ref]}  # fmt: skip
+
+
+def twin(ref: list[dict], work: Path) -> str:
+    """hosid's estimate on its own 409.6 s simulation of a uniform chain (roof driven,
+    stiffness-proportional damping) with the reference's first mode."""
+    system = hosid.System.from_toml(system_file(["x5"], False, work / "twin.toml"))
+    k = (math.pi * ref[0]["f"] / math.sin(math.pi / 22)) ** 2  # w1 = 2 sqrt(k) sin(pi / 22)
+    kinds = {"a1": ref[0]["zeta"] * k / (math.pi * ref[0]["f"]), "a2": k, "S0": 1e-3, "ma": 1}
+    values = {n: kinds[n[:2]] for n in system.param_names}
+    rec = hosid.simulate_chain(system, values, duration=409.6, dt=DT * HOSID_STEP,
+                               rng=np.random.default_rng(1), measured="acceleration")  # fmt: skip
+    try:
+        est = hosid.estimate(rec, system)
+        got = chain_modes(est.model, est.theta)
+    except Exception as exc:  # as said
+        return f"the estimate fails: {type(exc).__name__}: {exc}"
+    m = [np.round(x.omega / (2 * math.pi), 3).tolist() for x in (chain_modes(system, values), got)]
+    pri = system.default_priors(est.scales())
+    out = [n for n in system.param_names if not pri[n].lower < values[n] < pri[n].upper]
+    return (f"true modes {m[0]} Hz, estimated {m[1]} Hz (damping ratios "
+            f"{np.round(got.zeta, 3).tolist()}), Hansen's J = {est.test['J']:.4g} on "
+            f"{est.test['df']} df; the truth lies outside the default priors' supports of "
+            f"{', '.join(out) or 'no parameter'}")  # fmt: skip
+
+
+def rows(ref, oma, fits) -> list[dict]:
+    """The modal table: one row per mode and method, against the reference."""
+    out = []
+    for j, r in enumerate(ref):
+        ests = [(e["f"], f"{k} {e['f_err']:.2g}", e["zeta"], f"{k} {100 * e['zeta_err']:.2g}",
+                 e["shape"], method, note) for method, e, k, note in (
+            ("reference (I/O, time domain)", r, "±", f"coherence {r['coherence']:.2f}"),
+            ("FRF fit (H1)", r["frf"], "±", ""), ("SSI-cov", oma[j], "sd", (oma[j] or {}).get(
+                "note"))) if e]  # fmt: skip
+        for x in (x for x in fits if "matched" in x):
+            fq, zq = x["matched"][j]["frequency_hz"], x["matched"][j]["damping_ratio"]
+            ests.append((fq["mean"], f"[{fq['q05']:.4g}, {fq['q95']:.4g}]", zq["mean"],
+                         f"[{100 * zq['q05']:.3g}, {100 * zq['q95']:.3g}]",
+                         x["matched"][j]["shape"], f"hosid: {x['variant']}",
+                         "converged" if x["converged"] else "not converged"))  # fmt: skip
+        out += [{"mode": j + 1, "method": method, "f_hz": f, "f_interval": f_iv,
+                 "zeta_percent": 100 * z, "zeta_interval": z_iv,
+                 "df_percent": 100 * (f / r["f"] - 1), "dzeta_percent": 100 * (z / r["zeta"] - 1),
+                 "mac": mac(shape, r["shape"]), "note": note}
+                for f, f_iv, z, z_iv, shape, method, note in ests]  # fmt: skip
+    return out
+
+
+def write_results(table, ref, oma, fits, control, seconds, out: Path, quick: bool):
+    """``building.csv`` and ``building.md`` (the table, hosid's fits, the discussion)."""
+    with (out / "building.csv").open("w", newline="") as fh:
+        w = csv.DictWriter(fh, list(table[0]), lineterminator="\n")
+        w.writeheader()
+        w.writerows(table)
+    L = ["# A five-storey building: input-output reference, SSI and hosid (issue 33)", "",
+         f"`python analyses/building.py{' --quick' if quick else ''}` on `wn_01.dat`, "
+         f"{seconds:.0f} s. Intervals: ± a standard error, an sd over the stable poles, or "
+         "hosid's 90 %. MAC with the reference's shape (floors 1-5).", "",
+         "| mode | method | f (Hz) | ± / 90 % | zeta (%) | ± / 90 % | Δf % | Δzeta % | MAC "
+         "| note |", "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    L += [f"| {r['mode']} | {r['method']} | {r['f_hz']:.4f} | {r['f_interval']} | "
+          f"{r['zeta_percent']:.2f} | {r['zeta_interval']} | {r['df_percent']:+.1f} | "
+          f"{r['dzeta_percent']:+.0f} | {r['mac']:.3f} | {r['note']} |"
+          for r in table]  # fmt: skip
+    L += ["", "Reference shapes: " + "; ".join(f"mode {j + 1} {np.round(r['shape'], 3).tolist()}"
+          for j, r in enumerate(ref)), "", "## hosid's fits", "",
+          "| variant | outcome | R-hat max | ESS min | Hansen's test | checks | modes (Hz) | s |",
+          "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for f in fits:
+        got = [f.get("error") or ("" if f["converged"] else "not ") + "converged"]
+        got += [f.get(k, "") for k in ("r_hat", "ess", "hansen", "verdicts", "modes")]
+        L.append(f"| {f['variant']} | " + " | ".join(got) + f" | {f['seconds']:.0f} |")
+    r, w = ref[0], ref[0]["frf"]["windows"]
+    hit = [x["variant"] for x in fits if "matched" in x and abs(x["matched"][0]["damping_ratio"][
+        "mean"] / r["zeta"] - 1) <= 0.4 and all(abs(m["frequency_hz"]["mean"] / q["f"] - 1) <= 0.02
+        for m, q in zip(x["matched"], ref, strict=True))]  # fmt: skip
+    L += ["", f"Control: hosid on its own simulation of a uniform chain like this one, {control}.",
+        "", "## Discussion", "", "*Reference.* The FRF fit's first damping ratio moves with "
+        "the window (" + ", ".join(f"{100 * v:.2f} % at {n * DT:.0f} s" for n, v in sorted(
+        {**w, NPERSEG: r["frf"]["zeta"]}.items()))
+        + "), the time-domain fit's holds over the quarters (" + ", ".join(
+        f"{100 * p['zeta']:.2f}" for p in r["parts"]) + " %); on floors made from the "
+        f"measured force through a 2 % mode they give {100 * r['sim'][0]:.2f} % and "
+        f"{100 * r['sim'][1]:.2f} %. *SSI*: the coloured force, strongest just above the "
+        f"first mode, reads as a broader resonance ({oma[0]['zeta'] / r['zeta']:.1f} times "
+        "the reference's damping; the issue expected about twice). *hosid*: " + (", ".join(hit)
+        or "no variant") + " meets the issue's expectations (both frequencies within 2 %, the "
+        "first damping ratio within 40 %); see the control. hosid's rows: its modes of largest "
+        "MAC with the reference's."]  # fmt: skip
+    (out / "building.md").write_text("\n".join(L) + "\n")
+    return out / "building.md"
+
+
+def figure(force, floors, ref, oma, fits, path: Path) -> None:
+    """|H1| with the reference's modal model, and the methods' frequencies."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    f, H, _ = frfs(force, floors)
+    sel = (f > 0.3) & (f < 2.5)
+    fig, ax = plt.subplots(figsize=(9, 5), layout="constrained")
+    ax.semilogy(f[sel], np.abs(H[:, sel].T), lw=0.9, label=[f"floor {j}" for j in range(1, 6)])
+    for i, r in enumerate(ref):
+        fb = f[(f >= r["band"][0]) & (f <= r["band"][1])]
+        model = r["coef"][0] * accelerance(2 * math.pi * fb[:, None], r["wa"], r["zeta"])
+        ax.semilogy(fb, np.abs(model + r["coef"][1]), "k--", lw=0.8,
+                    label=["reference fit"] + [None] * 4 if i == 0 else None)  # fmt: skip
+    fit = next((x for x in fits if "matched" in x), {"matched": []})
+    marks = {"reference": [r["f"] for r in ref], "SSI": [s["f"] for s in oma if s],
+             "hosid (first fit)": [m["frequency_hz"]["mean"] for m in fit["matched"]]}  # fmt: skip
+    for (label, fs), color in zip(marks.items(), ("k", "C6", "C3"), strict=True):
+        for i, fr in enumerate(fs):
+            ax.axvline(fr, color=color, ls=":", lw=1.2, label=label if i == 0 else None)
+    ax.set(xlabel="frequency (Hz)", ylabel="|H1| (m/s^2 per kN)")
+    ax.legend(fontsize=7, ncol=3)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: Sequence[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=None, help="wn_01.dat (default: shared)")
+    ap.add_argument("--quick", action="store_true", help="300 emcee steps, roof-driven only")
+    ap.add_argument("--out", type=Path, default=RESULTS, help="results (work files: work/)")
+    a = ap.parse_args(argv)
+    if not (path := Path(a.data or os.environ.get("HOSID_BUILDING", DEFAULT_DATA))).is_file():
+        raise SystemExit(f"no data file {path}: give --data PATH or set HOSID_BUILDING")
+    (work := WORK if a.out == RESULTS else a.out / "work").mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    force, floors = load(path)
+    ref, oma = reference(force, floors), ssi(floors)
+    fits = run_hosid(floors, work, ref, quick=a.quick)
+    control, table = twin(ref, work), rows(ref, oma, fits)
+    md = write_results(table, ref, oma, fits, control, time.perf_counter() - t0, a.out, a.quick)
+    figure(force, floors, ref, oma, fits, a.out / "building.png")
+    print(md.read_text())
+    return {"reference": ref, "ssi": oma, "hosid": fits, "control": control, "table": table}
+
+
+if __name__ == "__main__":
+    main()
