@@ -182,7 +182,8 @@ def _add_fit(sub) -> None:
         action="store_true",
         help="drop the eq-65 constraint a1eq > 0 (shows the twin modes)",
     )
-    fit.add_argument("--walkers", type=integer(2), default=32, help="default 32")
+    fit.add_argument("--walkers", type=integer(2), default=None,
+                     help="default 32, or 2 x parameters + 2 when more")  # fmt: skip
     fit.add_argument(
         "--steps",
         type=integer(1),

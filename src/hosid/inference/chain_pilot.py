@@ -33,6 +33,7 @@ from ..components.chain_identities import ChainIdentities
 from ..components.chain_spectral import chain_band
 from ..errors import HosidInputError
 from ..model.system import System
+from ..model.system_priors import MASS_RANGE
 
 __all__ = ["chain_initial", "chain_pilot"]
 
@@ -81,7 +82,13 @@ def chain_pilot(state: ChainState, system: System, theta: np.ndarray | None = No
     free = [d for d, m in enumerate(system.masses) if m is None]
     i_m = [system.param_names.index(f"mass[{system.dofs[d]}]") for d in free]
     L = state.layout
-    bins = L.bins(*chain_band(state), k_min=2)
+    lo, hi = chain_band(state)
+    bins = L.bins(lo, hi, k_min=2)
+    if bins.size < 3:
+        raise HosidInputError(
+            f"the J2 band {lo:.3g}-{hi:.3g} rad/s holds fewer than 3 bins (the record's "
+            "channels leave no band between their integration edges and the resonances)"
+        )
     omega = bins * L.d_omega
     B = system.incidence
     Bcols = np.stack([B[e] for e, _ in system.columns], axis=-1)
@@ -219,6 +226,12 @@ def _joint(th, system, T3, cm, em, G2, Rbar, driven, i_S0, i_m, scale):
         return np.concatenate([ident / scale, lev])
 
     z0 = np.concatenate([th[:nd], np.log(th[i_m]), np.log(th[i_S0])])
-    got = least_squares(residual, z0, method="lm", xtol=1e-12, ftol=1e-12, max_nfev=2000)
-    out = full(got.x)
-    return out if np.all(np.isfinite(out)) else th
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        got = least_squares(residual, z0, method="lm", xtol=1e-12, ftol=1e-12, max_nfev=2000)
+        out = full(got.x)
+        better = np.sum(residual(got.x) ** 2) <= np.sum(residual(z0) ** 2)
+    lo, hi = MASS_RANGE
+    masses = out[i_m]
+    if not (np.all(np.isfinite(out)) and better and np.all((masses >= lo) & (masses <= hi))):
+        return th  # a collapse (masses out of their range, coefficients to 0): keep th
+    return out

@@ -251,6 +251,7 @@ def estimate(
     checks: Sequence[Check] | None = None,
     simulations: int = DEFAULT_SIMULATIONS,
     progress: bool | Stages = False,
+    support: PriorSet | None = None,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` and its mode (module docstring),
     searched within the default priors' supports; with ``settle`` the excitation is
@@ -264,7 +265,9 @@ def estimate(
     With ``impulsive_excitation`` and fewer than one impulse a sample, the estimate is
     corrected for its sampling bias by ``simulations`` records of the model a step
     (:mod:`hosid.inference.correction`; 0: not; their seed is fixed by the record's
-    samples), with a progress bar when ``progress``.
+    samples), with a progress bar when ``progress``.  ``support``: priors whose supports
+    bound the search instead of the default priors' (used when it names the model's
+    parameters, as the priors a fit is given do).
 
     Raises
     ------
@@ -277,7 +280,8 @@ def estimate(
     if isinstance(model, System) or getattr(record, "measured", ()) == ("acceleration",):
         from .system_estimate import routed  # a system's own state, pilot and components
 
-        kw = {"block_seconds": block_seconds, "force": force, "unit": unit, "checks": checks}
+        kw = {"block_seconds": block_seconds, "force": force, "unit": unit, "checks": checks,
+              "support": support}  # fmt: skip
         return routed(record, model, components, start=start, rounds=rounds, **kw)
     model = Model.from_spec(model)
     checks = list(checks or [])
@@ -310,9 +314,9 @@ def estimate(
     else:
         starts = [pilot_estimate(state, model)]
     logs = log_params(model)
-    support = model.default_priors(state.scales, constrained=False)
-    lower = np.array([support[n].lower for n in model.param_names])
-    upper = np.array([support[n].upper for n in model.param_names])
+    lower, upper = bounds(
+        model, support, lambda: model.default_priors(state.scales, constrained=False)
+    )
     failure, found = None, []
     for theta0 in starts:
         try:
@@ -365,6 +369,17 @@ def estimate(
         model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others,
         test,
     )  # fmt: skip
+
+
+def bounds(model, support, default) -> tuple[np.ndarray, np.ndarray]:
+    """The lower and upper ends of the search: ``support``'s when it names ``model``'s
+    parameters, else those of ``default()`` (the default priors).
+    """
+    if support is None or list(support.names) != list(model.param_names):
+        support = default()
+    lower = np.array([support[n].lower for n in model.param_names], dtype=float)
+    upper = np.array([support[n].upper for n in model.param_names], dtype=float)
+    return lower, upper
 
 
 def _solve_rounds(state, model, components, theta, rounds, logs, lower, upper):

@@ -94,6 +94,8 @@ def fit(
     o = FitOptions.of(options, **settings)
     structure = St.resolve(system, model)
     n_min = 2 * len(structure.param_names) + 2
+    if o.n_walkers is None:
+        o = FitOptions.of(o, n_walkers=max(32, n_min))
     if int(o.n_walkers) != o.n_walkers or o.n_walkers < n_min or o.n_walkers % 2:
         raise HosidInputError(f"n_walkers must be even and at least {n_min}, got {o.n_walkers}")
     cost = o.cost
@@ -108,7 +110,7 @@ def fit(
         comps = components_for(o.cost, band=band, form=o.form, domain=o.domain)
     est = estimate(
         record, structure, comps, block_seconds=o.block_seconds, force=o.force, unit=o.unit,
-        checks=o.checks, progress=o.progress,
+        checks=o.checks, progress=o.progress, support=o.priors,
     )  # fmt: skip
     structure = est.model  # with the excitation terms the record calls for
     timings = {"estimate": time.perf_counter() - t0}
@@ -204,22 +206,45 @@ def _sample(record: Record, est, cal, priors, o: FitOptions, cost):
         be = ChainFile(o.backend, signature, o.n_walkers, len(names))
     kde = cost is not None or not o.constrained  # the paper's valley and twin modes
     progress = o.progress
-    chain = S.run(
-        log_prob,
-        modes=modes,
-        cov=cal.cov,
-        log_params=log_params(structure, priors),
-        n_blobs=1 + len(comp_names),
-        rng=rng,
-        n_walkers=o.n_walkers,
-        n_steps=o.n_steps,
-        max_steps=o.max_steps,
-        mirror=damping if not o.constrained else (),
-        kde=kde,
-        backend=be,
-        progress=progress if isinstance(progress, Stages) else bool(progress) and "sampling",
-    )
+    try:
+        chain = S.run(
+            log_prob,
+            modes=modes,
+            cov=cal.cov,
+            log_params=log_params(structure, priors),
+            n_blobs=1 + len(comp_names),
+            rng=rng,
+            n_walkers=o.n_walkers,
+            n_steps=o.n_steps,
+            max_steps=o.max_steps,
+            mirror=damping if not o.constrained else (),
+            kde=kde,
+            backend=be,
+            progress=progress if isinstance(progress, Stages) else bool(progress) and "sampling",
+        )
+    except HosidInputError as exc:
+        if "no admissible starting point" not in str(exc):
+            raise
+        raise HosidInputError(f"{exc} ({_outside(priors, names, cal.theta)})") from None
     return chain, rng, kde
+
+
+def _outside(priors, names, theta) -> str:
+    """Which parameters of ``theta`` are at or beyond their prior's support and which
+    constraints it breaks, in words.
+    """
+    out = []
+    for n, v in zip(names, theta, strict=True):
+        p = priors[n]
+        lo, hi = float(p.lower), float(p.upper)
+        tol = 1e-6 * (hi - lo if np.isfinite(hi - lo) else max(abs(v), 1.0))
+        if v <= lo + tol or v >= hi - tol:
+            out.append(f"{n} = {v:.4g} at the edge of [{lo:.4g}, {hi:.4g}]")
+    for c, f in priors.constraints.items():
+        val = float(np.asarray(f(theta[None]))[0])
+        if not val > 0:
+            out.append(f"{c} = {val:.4g} <= 0")
+    return "; ".join(out) or "no bound or constraint is met exactly"
 
 
 def _attrs(record: Record, est, cal, priors, chain, o: FitOptions, cost, kde) -> dict[str, Any]:

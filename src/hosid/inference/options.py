@@ -42,7 +42,8 @@ class FitOptions:
     domain : {"principal", "reduced", "full"}
         Trispectral domain of J4.
     n_walkers, n_steps, max_steps : int
-        Ensemble size; a fixed number of steps, or the stop rule's limit.
+        Ensemble size (default ``None``: 32, or 2 p + 2 for p > 15 parameters); a fixed
+        number of steps, or the stop rule's limit.
     seed : int or Generator, optional
         The only source of randomness (walkers, moves, prior draws).
     progress : bool or Stages
@@ -71,7 +72,7 @@ class FitOptions:
     omega_max: float | None = None
     form: str = "scaled"
     domain: str = "principal"
-    n_walkers: int = 32
+    n_walkers: int | None = None
     n_steps: int | None = None
     max_steps: int = 20000
     seed: int | np.random.Generator | None = None

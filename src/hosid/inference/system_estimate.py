@@ -40,7 +40,7 @@ from ..model.system import System
 from ..record import Record
 from ..screen import check_record, reject_failures
 from .chain_pilot import chain_pilot
-from .estimate import Estimate, _solve_rounds, typical_scale
+from .estimate import Estimate, _solve_rounds, bounds, typical_scale
 from .gmm import hansen
 from .solutions import alternatives
 
@@ -98,6 +98,7 @@ def estimate_system(
     force: bool = False,
     unit: str = "m",
     checks: Sequence | None = None,
+    support=None,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` under ``system`` and its mode
     (module docstring); the arguments are :func:`hosid.inference.estimate.estimate`'s.
@@ -120,9 +121,11 @@ def estimate_system(
         state = system_state(record, system, block_seconds=block_seconds)
     components = list(components or system_components())
     theta0 = np.array(start, dtype=float) if start is not None else chain_pilot(state, system)
-    support = system.default_priors(system_scales(state, system), constrained=False)
-    lower = np.array([support[n].lower for n in system.param_names])
-    upper = np.array([support[n].upper for n in system.param_names])
+    lower, upper = bounds(
+        system,
+        support,
+        lambda: system.default_priors(system_scales(state, system), constrained=False),
+    )
     logs = system.log_params
     theta, ql = _solve_rounds(state, system, components, theta0, rounds, logs, lower, upper)
     J_best = float(-2.0 * ql(theta))

@@ -2,8 +2,13 @@ r"""A system's default priors, from its record's scales, and eq (65) per element
 
 Each element's terms take the single oscillator's default priors
 (:mod:`hosid.model.terms`) at the scales of the element's relative motion,
-:math:`\sigma_{r_e}` and :math:`\sigma_{\dot r_e}` (:class:`SystemScales`): for the
-one-element chain they are the single oscillator's priors.  An unknown mass is
+:math:`\sigma_{r_e}` and :math:`\sigma_{\dot r_e}` (:class:`SystemScales`), widened
+:math:`n`-fold for a system of :math:`n` dofs: an element carries the inertia of the dofs
+on one side of it, so its coefficients (per unit mass of the first dof) exceed what its
+own relative motion shows (in a uniform five-storey shear chain the ground spring is 6.7
+times :math:`\omega_{n,e}^2 = \sigma_{\dot r_e}^2/\sigma_{r_e}^2`, above the single
+oscillator's :math:`4\omega_n^2`).  For the one-element chain they are the single
+oscillator's priors.  An unknown mass is
 log-uniform on :math:`[10^{-2}, 10^2]` (the first dof's mass is 1), and a driven dof's
 level :math:`S_{0,d}` log-uniform over four decades each side of its acceleration's
 rough level times the square of its known mass (two decades, as the single oscillator's,
@@ -24,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .priors import LogUniform, PriorSet
+from .priors import LogUniform, PriorSet, Uniform
 from .terms import Scales
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -83,8 +88,10 @@ def system_priors(system: System, scales: SystemScales, *, constrained: bool = T
     names = iter(system.param_names)
     priors = {}
     for e, t in system.columns:
-        got = t.default_priors(scales.elements[e])
-        priors[next(names)] = got[t.params[0]]
+        prior = t.default_priors(scales.elements[e])[t.params[0]]
+        if system.n > 1 and isinstance(prior, Uniform):
+            prior = Uniform(system.n * prior.lower, system.n * prior.upper)
+        priors[next(names)] = prior
     masses = system.masses
     for m in masses:
         if m is None:
