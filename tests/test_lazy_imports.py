@@ -97,3 +97,35 @@ def test_an_unknown_command_is_still_a_one_line_error(capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("hosid: error: ") and "invalid choice" in err
     assert "\n" not in err
+
+
+def test_the_fit_and_its_components_load_no_numba_until_a_kernel_runs():
+    fit_path = (
+        "import hosid.cli\n"
+        "from hosid.inference import fit\n"
+        "import hosid.components.polyspectral, hosid.model.chain, hosid.model.simulate\n"
+    )
+    assert "numba" not in _loaded_after(fit_path)
+    run = fit_path + (
+        "import numpy as np, hosid\n"
+        "hosid.simulate(hosid.PAPER_PARAMS, duration=5.0, dt=0.05, rng=np.random.default_rng(0))\n"
+    )
+    assert "numba" in _loaded_after(run)
+
+
+def test_kernels_marked_before_and_after_the_first_call_compile():
+    """In a fresh interpreter: a placeholder compiles at its first call, and a kernel
+    marked after that is compiled at once (so the answer does not depend on test order).
+    """
+    probe = """
+from hosid import _jit
+first = _jit.njit(cache=False)(lambda a: a + 1.0)
+assert type(first).__name__ == "_Kernel" and not _jit._DONE
+assert first(1.0) == 2.0 and _jit._DONE
+assert type(first).__name__ == "CPUDispatcher"  # the module's name now holds the dispatcher
+later = _jit.njit(lambda a: a * 2.0)
+assert later(3.0) == 6.0 and type(later).__name__ == "CPUDispatcher"
+print("ok")
+"""
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr

@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 
 from hosid.errors import HosidInputError
 from hosid.inference import fit
-from hosid.model import PAPER_PARAMS, simulate
+from hosid.model import PAPER_PARAMS, Model, simulate
 from hosid.output import labels, plots, render, spectrum_plots
 from hosid.output.files import png
 from hosid.output.report import CAPTIONS, draw, figures, write_report
@@ -207,7 +207,8 @@ def test_figures_drawn_in_other_processes_are_those_drawn_here(paper_fit, monkey
     monkeypatch.setenv("HOSID_FIGURE_PROCESSES", "1")  # whatever the load
     if not render.enabled():
         pytest.skip("no figure processes here")
-    with render.FigureProcesses(dpi=30) as figures:
+    k = render.corner_size(Model.from_spec("paper"))  # its axes made while "fitting"
+    with render.FigureProcesses(dpi=30, corner=k) as figures:
         assert figures.running
         images = figures.handed(paper_fit)()
     assert images == draw(paper_fit, dpi=30)
@@ -223,6 +224,16 @@ def test_figures_drawn_in_other_processes_are_those_drawn_here(paper_fit, monkey
     assert not render.enabled()
     with pytest.raises(RuntimeError, match="no figure process"):
         figures.send(paper_fit)
+
+
+def test_a_corner_plot_on_axes_made_ahead_is_the_same_picture(paper_fit):
+    k = render.corner_size(Model.from_spec("paper"))
+    assert k == len(plots.corner_plot(paper_fit).axes) ** 0.5 == 6  # a1 n1 a2 n2 S0 a1eq
+    assert render.corner_size(Model.from_spec("linear")) == 3  # a1 a2 S0: no a1eq
+    plots.prepare_corner(k)
+    ahead = png(plots.corner_plot(paper_fit), 30)
+    assert k not in plots._SPARE  # taken
+    assert ahead == png(plots.corner_plot(paper_fit), 30)
 
 
 def test_write_report_takes_the_figures_drawn_elsewhere(paper_fit, tmp_path):

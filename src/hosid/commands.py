@@ -213,13 +213,15 @@ def _fit_into(out: Path, record, *, command: str, backend: str | None, extra=Non
     writes more files into the same commit and returns their names.
     """
     from hosid.inference import fit
+    from hosid.inference.structure import resolve
     from hosid.output.files import locked_dir, staged
-    from hosid.output.render import FigureProcesses
+    from hosid.output.render import FigureProcesses, corner_size
     from hosid.progress import Stages
 
+    corner = corner_size(resolve(options.get("system"), options.get("model")))
     stages = Stages("hosid fit", enabled=bool(options.pop("progress", True)))
     try:
-        with locked_dir(out, command=command), FigureProcesses() as figures:
+        with locked_dir(out, command=command), FigureProcesses(corner=corner) as figures:
             chain = Path(backend) if backend else out / CHAIN_NAME
             stages.stage("estimate")
             try:

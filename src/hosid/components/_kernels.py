@@ -10,13 +10,14 @@ arbitrary triple domain: one pass over blocks and triples, no temporaries of siz
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from .._jit import njit, prange
 
 __all__ = ["contract", "contract3", "products", "products3"]
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def products(Ys, idx, lam, c8):  # pragma: no cover - compiled
     r"""Per block and triple: :math:`q = X_1X_2X_3X_4^*/c_8` with
     :math:`X = \sum_f\lambda_fY_f`, and :math:`\partial q/\partial\lambda_f` for
@@ -26,7 +27,7 @@ def products(Ys, idx, lam, c8):  # pragma: no cover - compiled
     n = idx.shape[0]
     q = np.empty((B, n), dtype=np.complex128)
     dq = np.empty((B, n, F - 1), dtype=np.complex128)
-    for b in numba.prange(B):
+    for b in prange(B):
         x = np.zeros(4, dtype=np.complex128)
         for t in range(n):
             x[:] = 0.0
@@ -49,7 +50,7 @@ def products(Ys, idx, lam, c8):  # pragma: no cover - compiled
     return q, dq
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def contract(Ys, idx, w, c8):  # pragma: no cover - compiled
     r""":math:`K_{j,abcd} = \frac{1}{Bc_8}\sum_{b,t}\mathrm{Re}\,w_{btj}Y_a(k_1)Y_b(k_2)
     Y_c(k_3)Y_d^*(k_4)`, shape ``(J, F, F, F, F)``; ``w`` is ``(B, n, J)``.
@@ -58,7 +59,7 @@ def contract(Ys, idx, w, c8):  # pragma: no cover - compiled
     n = idx.shape[0]
     J = w.shape[2]
     parts = np.zeros((B, J, F, F, F, F))  # one partial sum per block (parallel)
-    for b in numba.prange(B):
+    for b in prange(B):
         K = parts[b]
         p1 = np.empty((F, F), dtype=np.complex128)
         p2 = np.empty((F, F), dtype=np.complex128)
@@ -82,7 +83,7 @@ def contract(Ys, idx, w, c8):  # pragma: no cover - compiled
     return parts.sum(axis=0) / (B * c8)
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def products3(Ys, idx, lam, c3):  # pragma: no cover - compiled
     r"""Per block and pair: :math:`q = X_1X_2X_3^*/c_3` and
     :math:`\partial q/\partial\lambda_f` for :math:`f \ge 1` (``idx`` is ``(n, 3)``).
@@ -91,7 +92,7 @@ def products3(Ys, idx, lam, c3):  # pragma: no cover - compiled
     n = idx.shape[0]
     q = np.empty((B, n), dtype=np.complex128)
     dq = np.empty((B, n, F - 1), dtype=np.complex128)
-    for b in numba.prange(B):
+    for b in prange(B):
         x = np.zeros(3, dtype=np.complex128)
         for t in range(n):
             x[:] = 0.0
@@ -108,7 +109,7 @@ def products3(Ys, idx, lam, c3):  # pragma: no cover - compiled
     return q, dq
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def contract3(Ys, idx, w, c3):  # pragma: no cover - compiled
     r""":math:`K_{j,abc} = \frac{1}{Bc_3}\sum_{b,t}\mathrm{Re}\,w_{btj}Y_a(k_1)Y_b(k_2)
     Y_c^*(k_3)`, shape ``(J, F, F, F)``.
@@ -117,7 +118,7 @@ def contract3(Ys, idx, w, c3):  # pragma: no cover - compiled
     n = idx.shape[0]
     J = w.shape[2]
     parts = np.zeros((B, J, F, F, F))
-    for b in numba.prange(B):
+    for b in prange(B):
         K = parts[b]
         for t in range(n):
             for a in range(F):

@@ -51,22 +51,41 @@ def damping_columns(structure: Model | System) -> list[int]:
     return [i for i, t in enumerate(structure.drift_terms) if t.variable == "v"]
 
 
-def derived(structure: Model | System, theta: np.ndarray, sigma_v) -> dict[str, np.ndarray]:
-    """Eq (65)'s equivalent damping of ``theta`` ``(..., p)``: ``a1eq`` of a model (or an
-    element) with more damping than ``a1`` alone, one variable an element of a system.
+def derived_names(structure: Model | System) -> list[str]:
+    """The names of :func:`derived`'s variables (a single oscillator's ``a1eq`` or none)
+    for a model; for a system, those of its elements.
     """
     if isinstance(structure, Model):
         damping = damping_columns(structure)
         terms = structure.drift_terms
-        if len(damping) > 1 or (damping and terms[damping[0]].params != ("a1",)):
+        more = len(damping) > 1 or (damping and terms[damping[0]].params != ("a1",))
+        return ["a1eq"] if more else []
+    return [constraint_name(structure, e) for e in _more_than_a1(structure)]
+
+
+def _more_than_a1(structure: System) -> list[int]:
+    """The damped elements of ``structure`` with more damping than ``a1`` alone."""
+    out = []
+    for e in damped(structure):
+        params = [t.params for t in structure.elements[e].terms if t.variable == "v"]
+        if len(params) > 1 or params != [("a1",)]:
+            out.append(e)
+    return out
+
+
+def derived(structure: Model | System, theta: np.ndarray, sigma_v) -> dict[str, np.ndarray]:
+    """Eq (65)'s equivalent damping of ``theta`` ``(..., p)``: ``a1eq`` of a model (or an
+    element) with more damping than ``a1`` alone, one variable an element of a system
+    (:func:`derived_names`).
+    """
+    if isinstance(structure, Model):
+        if derived_names(structure):
             return {"a1eq": structure.equivalent_damping(theta, sigma_v)}
         return {}
     out = {}
     eq = equivalent_damping(structure, theta, np.atleast_1d(sigma_v))
-    for e in damped(structure):
-        params = [t.params for t in structure.elements[e].terms if t.variable == "v"]
-        if len(params) > 1 or params != [("a1",)]:
-            out[constraint_name(structure, e)] = eq[..., e]
+    for e in _more_than_a1(structure):
+        out[constraint_name(structure, e)] = eq[..., e]
     return out
 
 

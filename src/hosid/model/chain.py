@@ -50,9 +50,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numba
 import numpy as np
 
+from .._jit import njit
 from ..errors import HosidInputError
 from ..record import Record, write_record
 from ..screen import THRESHOLDS
@@ -76,7 +76,7 @@ CODES = {
 }
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _forces(q, v, ei, ej, code, coef, out):  # pragma: no cover - compiled
     r"""The elements' forces on the dofs, :math:`B^{\mathsf T}f`, into ``out``."""
     out[:] = 0.0
@@ -107,7 +107,7 @@ def _forces(q, v, ei, ej, code, coef, out):  # pragma: no cover - compiled
             out[i] -= f
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _heun_chain(q, v, dW, dZ, i0, sub, h, sys, burn, qs, vs, vh):  # pragma: no cover
     """Heun on ``(q, v)`` over the intervals ``i0, i0 + 1, ...`` of this chunk.
 

@@ -44,9 +44,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
-import numba
 import numpy as np
 
+from .._jit import njit
 from ..errors import HosidInputError
 
 __all__ = ["CHANGE_PARAMS", "FLAT_KEYS", "NO_SWITCH", "Change", "blend", "switch"]
@@ -236,7 +236,7 @@ def switch(
     return c2, ratio, start, start + change.ramp / dt
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def blend(k, k0, k1, c, sw, out):  # pragma: no cover - compiled
     r"""Drift coefficients of sub-step ``k`` (``k0 <= k <= k1``, the change's sub-steps)
     into ``out``, :math:`(1 - \phi)c + \phi c_a` with :math:`\phi` at the sub-step's

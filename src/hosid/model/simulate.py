@@ -47,9 +47,9 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-import numba
 import numpy as np
 
+from .._jit import njit
 from ..errors import HosidInputError
 from ..record import Record
 from ..screen import THRESHOLDS
@@ -75,7 +75,7 @@ _DRIFT_KEYS = ("a1", "n1", "a2", "n2", "b2", "mu", "m")
 SIM_KEYS = (*_DRIFT_KEYS, "S0", "wc", "wb", "rolloff", "wf", "zf", "rate", "noise_sd")
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _accel(x, v, g, c):  # pragma: no cover - compiled
     a = g + c[6] - (c[0] * v + c[1] * v * abs(v) + c[2] * x + c[3] * x * x * x)
     if c[4] != 0.0:
@@ -85,7 +85,7 @@ def _accel(x, v, g, c):  # pragma: no cover - compiled
     return a
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _heun(dW, dZ, n_out, sub, h, c, wc, burn, xs, vs, sw):  # pragma: no cover - compiled
     """Stochastic Heun on (x, v) or, with ``wc > 0``, on (x, v, g); ``dZ`` is the part
     of the white force's double integral that ``dW`` does not hold (module docstring);
@@ -124,7 +124,7 @@ def _heun(dW, dZ, n_out, sub, h, c, wc, burn, xs, vs, sw):  # pragma: no cover -
             vs[i - burn] = v
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _heun_forced(f, n_out, sub, h, c, burn, xs, vs, sw):  # pragma: no cover - compiled
     """Heun on (x, v) driven by the smooth force ``f`` given on the sub-step grid."""
     cc, s, k0, k1 = c.copy(), 1.0, round(sw[2] * sub), round(sw[3] * sub)

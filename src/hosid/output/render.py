@@ -41,7 +41,7 @@ from typing import Any
 
 from ..errors import HosidInputError
 
-__all__ = ["SHARES", "TIMEOUT", "FigureError", "FigureProcesses", "enabled"]
+__all__ = ["SHARES", "TIMEOUT", "FigureError", "FigureProcesses", "corner_size", "enabled"]
 
 #: The figures of each process, by stem: the corner plot takes about as long as the rest.
 SHARES = (
@@ -68,6 +68,22 @@ def enabled() -> bool:
         return False
     cores = os.cpu_count() or 1
     return setting == "1" or (cores > 1 and os.getloadavg()[0] < cores)
+
+
+def corner_size(structure: Any) -> int:
+    """The number of variables in the corner plot of a fit of ``structure`` (a model or
+    a system, :func:`hosid.inference.structure.resolve`) when the fit adds no excitation
+    terms: its parameters, and ``a1eq`` for a single oscillator with more damping than
+    ``a1`` (:func:`hosid.output.plots.corner_plot`).
+    """
+    from ..model.model import Model
+
+    names = list(structure.param_names)
+    if isinstance(structure, Model):
+        from ..inference.structure import derived_names
+
+        names += derived_names(structure)
+    return len(names)
 
 
 def _fork() -> int:
@@ -172,13 +188,19 @@ def _warm_up() -> None:
     png(fig, 20)
 
 
-def _child(tree_fd: int, answers: tuple[int, int], dpi: int) -> None:
-    """The first figure process: warm up, wait for the fit, fork the second, draw."""
+def _child(tree_fd: int, answers: tuple[int, int], dpi: int, corner: int | None) -> None:
+    """The first figure process: warm up, make the corner plot's axes for ``corner``
+    variables, wait for the fit, fork the second, draw.
+    """
     from .report import STEMS, draw
 
     first, second = answers
     try:
         _warm_up()
+        if corner:
+            from .plots import prepare_corner
+
+            prepare_corner(corner)
     except Exception:
         pass  # drawing fails the same way and says why
     data = _read((tree_fd,))[0]
@@ -220,10 +242,15 @@ class FigureProcesses:
     ----------
     dpi : int
         Resolution of the PNG figures.
+    corner : int, optional
+        The number of variables the corner plot will likely show
+        (:func:`corner_size`): its axes are made while the command
+        fits.
     """
 
-    def __init__(self, *, dpi: int = 100) -> None:
+    def __init__(self, *, dpi: int = 100, corner: int | None = None) -> None:
         self.dpi = dpi
+        self.corner = corner
         self._pid: int | None = None
         self._tree_fd: int | None = None
         self._answer_fds: tuple[int, ...] = ()
@@ -248,7 +275,7 @@ class FigureProcesses:
                 os.setpgid(0, 0)  # Ctrl-C at the terminal reaches the command alone
                 for fd in (tree_w, first_r, second_r):
                     os.close(fd)
-                _child(tree_r, (first_w, second_w), self.dpi)
+                _child(tree_r, (first_w, second_w), self.dpi, self.corner)
             except BaseException:
                 code = 1
             finally:
