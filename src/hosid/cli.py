@@ -108,6 +108,13 @@ def _analysis_options(p: argparse.ArgumentParser) -> None:
 def _record_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unit", default="m", metavar="UNIT", help="unit of the record's x; default m")
     p.add_argument(
+        "--measured",
+        choices=("displacement", "acceleration"),
+        default=None,
+        help="what every channel of the record holds; default what its file (an .npz "
+        "written by hosid) or the system file says, else displacement",
+    )
+    p.add_argument(
         "--force",
         action="store_true",
         help="analyse a record that fails the record checks anyway (exit 3 otherwise)",
@@ -211,7 +218,9 @@ def _add_diagnose(sub) -> None:
         "--model",
         default="paper",
         metavar="BASE",
-        help="base model: linear, paper, or term names; default paper",
+        help="base model: linear, paper, or term names; or a system file (.toml): then "
+        "each candidate effect is tried in each element and the pair is named "
+        "(hosid.check.locate; --alpha, --candidates and --max-effects apply); default paper",
     )
     _shape_option(dia)
     dia.add_argument(

@@ -15,7 +15,7 @@ import numpy as np
 
 from hosid.errors import HosidInputError
 from hosid.output.console import fmt, print_fit, table
-from hosid.system_commands import simulate_system, system_file
+from hosid.system_commands import locate_system, simulate_system, system_file
 
 #: Old ``--method`` names of ``hosid estimate`` and the cost they now mean.
 METHODS = {
@@ -30,10 +30,14 @@ METHODS = {
 CHAIN_NAME = ".hosid-chain.h5"
 
 
-def _read(path: str):
+def _read(path: str, measured: str | None = None):
+    """The record of ``path``; with ``measured`` (``--measured``) every channel declared
+    a displacement or an acceleration (an error when the file says otherwise).
+    """
     from hosid.record import read_record
 
-    return read_record(Path(path))
+    record = read_record(Path(path))
+    return record if measured is None else record.select(record.channels, measured=measured)
 
 
 def _model(args):
@@ -97,7 +101,7 @@ def cmd_estimate(args) -> int:
     from hosid.inference import components_for, estimate
     from hosid.inference.calibrate import calibrate
 
-    record = _read(args.record)
+    record = _read(args.record, args.measured)
     if args.json:
         _check_writable(Path(args.json))
     checks = _checked(args, record)
@@ -248,7 +252,7 @@ def cmd_fit(args) -> int:
     backend = args.backend
     if backend is not None and Path(backend).suffix.lower() not in (".h5", ".hdf5"):
         raise HosidInputError(f"{backend}: the backend must be an HDF5 file (.h5 or .hdf5)")
-    record = _read(args.record)
+    record = _read(args.record, args.measured)
     from hosid.record import read_truths
 
     truths = read_truths(Path(args.record), args.truths)
@@ -285,16 +289,21 @@ def cmd_diagnose(args) -> int:
     from hosid.output.files import output_dir
     from hosid.output.results import save
 
-    record = _read(args.record)
+    record = _read(args.record, args.measured)
     _check_out(args.out)
     checks = _checked(args, record)
     candidates = None
     if args.candidates is not None:
         candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
+    from hosid.model.system import System
+
+    model = _model(args)
+    if isinstance(model, System):  # a system file: locate the missing effect
+        return locate_system(args, record, model, checks, candidates)
     with output_dir(args.out, command=args.command_line) as stage:
         diag = diagnose(
             record,
-            _model(args),
+            model,
             rng=np.random.default_rng(args.seed),
             candidates=candidates,
             replicates=args.replicates,

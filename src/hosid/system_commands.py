@@ -3,7 +3,8 @@
 ``hosid simulate --system FILE.toml`` (or ``--measured acceleration`` for the single
 oscillator as the one-element chain) writes a multi-channel record and its true values;
 ``hosid fit REC --model FILE.toml`` fits a system (:mod:`hosid.commands` passes the file
-to :func:`hosid.fit`).
+to :func:`hosid.fit`); ``hosid diagnose REC --model FILE.toml`` names the missing
+(effect, element) pairs (:func:`locate_system`, :mod:`hosid.check.locate`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 
 from hosid.errors import HosidInputError
 
-__all__ = ["add_system_options", "simulate_system", "system_file"]
+__all__ = ["add_system_options", "locate_system", "simulate_system", "system_file"]
 
 
 def system_file(model: str):
@@ -89,4 +90,27 @@ def simulate_system(args, out: Path) -> int:
     kinds = ", ".join(f"{c} {k}" for c, k in zip(record.channels, record.measured, strict=True))
     print(f"wrote {out}: {record.n} samples, dt={record.dt:g} s, channels {kinds} "
           f"(true parameters: {sidecar})")  # fmt: skip
+    return 0
+
+
+def locate_system(args, record, system, checks, candidates) -> int:
+    """``hosid diagnose REC --model SYSTEM.toml``: the missing (effect, element) pairs."""
+    from hosid.check.locate import locate
+    from hosid.output.files import output_dir
+    from hosid.output.locate_report import write_locate
+    from hosid.progress import Stages
+
+    stages = Stages("hosid diagnose", enabled=not args.no_progress)
+    try:
+        with output_dir(args.out, command=args.command_line) as stage:
+            loc = locate(record, system, candidates=candidates, alpha=args.alpha,
+                         max_effects=args.max_effects, unit=args.unit, force=args.force,
+                         checks=checks, progress=stages.stage)  # fmt: skip
+            names = [p.name for p in write_locate(loc, stage)]
+    finally:
+        stages.close()
+    for r in loc.rounds:
+        print("  " + ", ".join(f"{w.label} z {w.z:+.2f}" for w in r.weighed))
+    print(f"named: {', then '.join(loc.named_effects) or 'none'} - {loc.decision}")
+    print("wrote " + ", ".join(str(Path(args.out) / n) for n in names))
     return 0
