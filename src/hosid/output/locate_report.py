@@ -24,14 +24,14 @@ __all__ = ["evidence_figure", "write_locate"]
 
 
 def _threshold(level: float) -> float:
-    """The two-sided normal quantile of ``level``: the |z| a pair must exceed."""
+    """The two-sided normal quantile of ``level``: the :math:`|z|` a pair must exceed."""
     from scipy.special import ndtri
 
     return float(-ndtri(level / 2.0))
 
 
 def evidence_figure(loc: Localisation) -> Figure:
-    """One panel a round: each pair's |z|, the named one filled, the threshold dashed."""
+    """One panel a round: each pair's :math:`|z|`, the named one in red, the level dashed."""
     k = len(loc.rounds)
     fig = Figure(figsize=(7.0, 1.2 + 0.35 * max(len(r.weighed) for r in loc.rounds) * k),
                  layout="constrained")  # fmt: skip
@@ -45,8 +45,8 @@ def evidence_figure(loc: Localisation) -> Figure:
         ax.invert_yaxis()
         cut = _threshold(r.level)
         ax.axvline(cut, color="k", linestyle="--", linewidth=1)
-        ax.set_title(f"round {n + 1}: |z| of each (effect, element); dashed: Bonferroni "
-                     f"threshold {cut:.2f} (alpha {loc.alpha:g} over {len(z)} pairs)",
+        ax.set_title(f"round {n + 1}: dashed, the level |z| = {cut:.2f} "
+                     f"(alpha {loc.alpha:g} / {len(z)} pairs); red, the pair named",
                      fontsize=9)  # fmt: skip
         ax.set_xlabel("|z| = |estimate| / sd")
     return fig
