@@ -247,13 +247,15 @@ def _fit_row(tree, ref) -> dict:
     reference's."""
     s = summarize(tree, warn=False)
     p, cal, found = s["parameters"].values(), s["calibration"]["hansen"], s["modes"]
-    return {"converged": s["converged"], "r_hat": f"{max(x['r_hat'] for x in p):.3f}",
-            "ess": f"{min(min(x['ess_bulk'], x['ess_tail']) for x in p):.0f}",
-            "hansen": f"J = {cal['J']:.4g} on {cal['df']} df, p = {cal['p_value']:.2g}",
-            "verdicts": ", ".join(f"{c['name']} {c['status']}" for c in s["checks"]),
-            "modes": ", ".join(f"{m['frequency_hz']['mean']:.3g}" for m in found),
-            "matched": [max(found, key=lambda m: mac(m["shape"], r["shape"]))
-                        for r in ref]}  # fmt: skip
+    row = {"converged": s["converged"], "r_hat": f"{max(x['r_hat'] for x in p):.3f}",
+           "ess": f"{min(min(x['ess_bulk'], x['ess_tail']) for x in p):.0f}",
+           "hansen": f"J = {cal['J']:.4g} on {cal['df']} df, p = {cal['p_value']:.2g}",
+           "verdicts": ", ".join(f"{c['name']} {c['status']}" for c in s["checks"]),
+           "modes": ", ".join(f"{m['frequency_hz']['mean']:.3g}" for m in found)
+           or "none: no posterior draw has every mode underdamped"}  # fmt: skip
+    if found:
+        row["matched"] = [max(found, key=lambda m: mac(m["shape"], r["shape"])) for r in ref]
+    return row
 
 
 def twin(ref: list[dict], work: Path) -> str:
