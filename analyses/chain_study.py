@@ -96,7 +96,7 @@ def toml_text(name: str, measured: str) -> str:
     return head + SYSTEMS[name]
 
 
-def prepare(case: str, n: int, folder: Path) -> list[Path]:
+def prepare(case: str, n: int, folder: Path, seed: int = SEED) -> list[Path]:
     """The case's system file and records 0 .. n - 1 (simulated where missing)."""
     name, measured = CASES[case]
     folder.mkdir(parents=True, exist_ok=True)
@@ -111,9 +111,9 @@ def prepare(case: str, n: int, folder: Path) -> list[Path]:
         if path.exists():
             continue
         path.parent.mkdir(exist_ok=True)
-        seed = np.random.SeedSequence(SEED).spawn(key + 1)[key].spawn(i + 1)[i]
+        ss = np.random.SeedSequence(seed).spawn(key + 1)[key].spawn(i + 1)[i]
         rec = independent_chain_sim.simulate(
-            s, duration=2000.0, dt=0.02, rng=np.random.default_rng(seed), measured=measured,
+            s, duration=2000.0, dt=0.02, rng=np.random.default_rng(ss), measured=measured,
             name=path.stem,
         )  # fmt: skip
         tmp = path.with_suffix(".tmp.npz")
@@ -123,13 +123,14 @@ def prepare(case: str, n: int, folder: Path) -> list[Path]:
     return paths
 
 
-def fit_case(case: str, paths: Sequence[Path], folder: Path, workers: int, steps=None):
+def fit_case(case: str, paths: Sequence[Path], folder: Path, workers: int, steps=None,
+             seed: int = SEED):  # fmt: skip
     """Fit the records through the batch engine (resumable)."""
     name, _ = CASES[case]
     options = {"model": str(folder / f"{name}.toml")}
     if steps:
         options["n_steps"] = steps
-    tasks = record_tasks([str(p) for p in paths], analysis="fit", options=options, seed=SEED)
+    tasks = record_tasks([str(p) for p in paths], analysis="fit", options=options, seed=seed)
     return run_batch(tasks, folder / "batch", workers=workers, progress=False,
                      label=f"chain study {case}")  # fmt: skip
 
@@ -184,12 +185,12 @@ def summarize(case: str, folder: Path) -> dict:
             sum(int(_value(r, "converged")) for r in table), "n": len(table)}  # fmt: skip
 
 
-def markdown(summaries: Sequence[dict], ideff: dict, argv: str) -> str:
+def markdown(summaries: Sequence[dict], ideff: dict, argv: str, seed: int = SEED) -> str:
     """The study's tables."""
     lines = [
         "# Chain fits: efficiency against the full-state bound, and calibration",
         "",
-        f"`python analyses/chain_study.py{argv}` (seed {SEED}). Records of 2000 s at dt = "
+        f"`python analyses/chain_study.py{argv}` (seed {seed}). Records of 2000 s at dt = "
         "0.02 from the independent chain simulator (`independent_chain_sim.py`), fitted by "
         "hosid's batch engine with the system file (default components, eq-65 constraint "
         "per element, emcee to convergence). Efficiency = bound variance / MSE of the "
@@ -245,13 +246,18 @@ def main(argv: Sequence[str] | None = None) -> list[dict]:
     ap.add_argument("--summary", action="store_true", help="tables from the fits made")
     ap.add_argument("--quick", action="store_true", help="200 steps a fit (the tests')")
     ap.add_argument("--out", type=Path, default=WORK)
+    ap.add_argument("--seed", type=int, default=SEED,
+                    help=f"another set of records (default {SEED}): its own work folders and "
+                    "results/chain_study_seed<SEED>.md, .csv")  # fmt: skip
     args = ap.parse_args(argv)
+    tag = "" if args.seed == SEED else f"_seed{args.seed}"
     summaries, ideff = [], {}
     for case in args.cases:
-        folder = args.out / f"chain_{case}"
+        folder = args.out / f"chain_{case}{tag}"
         if not args.summary:
-            paths = prepare(case, args.records, folder)
-            fit_case(case, paths, folder, args.workers, steps=200 if args.quick else None)
+            paths = prepare(case, args.records, folder, args.seed)
+            fit_case(case, paths, folder, args.workers, steps=200 if args.quick else None,
+                     seed=args.seed)  # fmt: skip
         summaries.append(summarize(case, folder))
     for name in sorted({CASES[c][0] for c in args.cases}):
         s = system(name)
@@ -261,10 +267,11 @@ def main(argv: Sequence[str] | None = None) -> list[dict]:
         ideff[name] = identity_efficiency(s, q[::2], v[::2], 2000.0)
     shown = "" if list(args.cases) == list(CASES) else " --cases " + " ".join(args.cases)
     shown += "" if args.records == 10 else f" --records {args.records}"
-    text = markdown(summaries, ideff, shown + (" --quick" if args.quick else ""))
+    shown += f" --seed {args.seed}" if tag else ""
+    text = markdown(summaries, ideff, shown + (" --quick" if args.quick else ""), args.seed)
     print(text)
     if not args.quick:
-        (RESULTS / "chain_study.md").write_text(text)
+        (RESULTS / f"chain_study{tag}.md").write_text(text)
         fields = [
             "case",
             "parameter",
@@ -282,7 +289,7 @@ def main(argv: Sequence[str] | None = None) -> list[dict]:
             "rhat",
             "ess",
         ]
-        with (RESULTS / "chain_study.csv").open("w", newline="") as fh:
+        with (RESULTS / f"chain_study{tag}.csv").open("w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=fields, restval="")
             w.writeheader()
             for sm in summaries:
