@@ -91,13 +91,14 @@ def bound_sd(base: System, k: int, seed: int) -> float:
 
 def one(job: tuple) -> dict:
     """Simulate one record and locate its effect."""
-    case, strength, i, truth_values, seed = job
+    case, strength, i, truth_values, seed, measured = job
     base = base_system()
     truth = base
     if case != "clean":
         truth = extended(base, "cubic_stiffness", HIDDEN[case])
     rec = independent_chain_sim.simulate(truth, truth.vector(truth_values), duration=2000.0,
-                                         dt=0.02, rng=np.random.default_rng(seed))  # fmt: skip
+                                         dt=0.02, rng=np.random.default_rng(seed),
+                                         measured=measured)  # fmt: skip
     t0 = time.perf_counter()
     loc = locate(rec, base)
     first = loc.rounds[0]
@@ -121,6 +122,9 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--clean", type=int, default=40, help="clean records")
     ap.add_argument("--strengths", default="2,3,5", help="n2 in bound sds, comma-separated")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--measured", choices=("displacement", "acceleration"),
+                    default="displacement", help="what the records' channels hold; "
+                    "acceleration: results/locate_power_acceleration.md, .csv")  # fmt: skip
     args = ap.parse_args(argv)
     args.strengths = [float(v) for v in args.strengths.split(",")]
     t0 = time.perf_counter()
@@ -136,7 +140,7 @@ def main(argv=None) -> list[dict]:
             if case != "clean":
                 label = base.elements[HIDDEN[case]].label
                 values[f"n2[{label}]"] = strength * sds[case]
-            jobs += [(case, strength, i, values, s) for i, s in enumerate(seq)]
+            jobs += [(case, strength, i, values, s, args.measured) for i, s in enumerate(seq)]
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(one, jobs))
     write(rows, sds, args, time.perf_counter() - t0)
@@ -146,7 +150,8 @@ def main(argv=None) -> list[dict]:
 def write(rows: list[dict], sds: dict, args, seconds: float) -> None:
     """``results/locate_power.csv`` and ``.md``."""
     keys = list(dict.fromkeys(k for r in rows for k in r))
-    with open(RESULTS / "locate_power.csv", "w", newline="") as f:
+    stem = "locate_power" + ("" if args.measured == "displacement" else f"_{args.measured}")
+    with open(RESULTS / f"{stem}.csv", "w", newline="") as f:
         w = csv.DictWriter(f, keys)
         w.writeheader()
         w.writerows(rows)
@@ -154,7 +159,7 @@ def write(rows: list[dict], sds: dict, args, seconds: float) -> None:
         "# Locating a hidden cubic spring in a 2-dof chain (issue 33, item 3)",
         "",
         f"`python analyses/locate_power.py {' '.join(sys.argv[1:])}`".rstrip() + ": "
-        "independent simulator (BAOAB), 2000 s at dt = 0.02, base "
+        f"independent simulator (BAOAB), 2000 s at dt = 0.02, {args.measured} channels, base "
         "`locate_power_base.toml` (all linear), `hosid.check.locate.locate` with its "
         "defaults (quadratic damping and cubic stiffness in each element, Bonferroni at "
         "alpha = 0.05 over a round's pairs, rounds until none is supported); "
@@ -193,7 +198,7 @@ def write(rows: list[dict], sds: dict, args, seconds: float) -> None:
         + ".  Over the clean records the largest |z| of the four pairs: median "
         f"{np.median(top) if top else math.nan:.2f}.",
     ]
-    (RESULTS / "locate_power.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
