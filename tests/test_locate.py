@@ -111,3 +111,19 @@ def test_measured_declares_what_the_channels_hold(base, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert "is an acceleration (its file says so) but was declared a displacement" in err
     assert "\n" not in err
+
+
+def test_systems_of_one_topology_share_a_state_without_mixing_their_columns(base):
+    """A state's cached feature transforms are keyed by element and term: fitting one
+    extended system first leaves another's fit on the same state unchanged (they were
+    keyed by column index, and ``n1[x1-x2]`` read ``a1[x1-x2]``'s transforms).
+    """
+    from hosid.inference.system_estimate import estimate_system, system_state
+
+    s, _ = base
+    rec = _record(s, dict(s.values), 9, measured="acceleration")
+    first, second = extended(s, "quadratic_damping", 0), extended(s, "quadratic_damping", 1)
+    shared = system_state(rec, s)
+    estimate_system(shared, first)
+    alone = estimate_system(system_state(rec, s), second).theta
+    np.testing.assert_allclose(estimate_system(shared, second).theta, alone, rtol=1e-9)

@@ -184,7 +184,9 @@ def force_ffts(
     for c, s in zip(cols, sign, strict=True):
         e, t = system.columns[c]
         spread = rest.Sv[e, e] if t.variable == "v" else rest.Cr[e, e]
-        key = ("column", _key(system), int(c), round(float(spread), 12), state.centred)
+        # by element and term, not by column: systems of one topology share a state
+        # (hosid.check.locate) and number their columns differently
+        key = ("column", _key(system), int(e), t.name, round(float(spread), 12), state.centred)
         Y = state.block_fft(key, lambda b, c=c: column_blocks(state, system, c, rest), bins,
                             window)  # fmt: skip
         rows.append(Y if s == 1.0 else s * Y)
