@@ -40,8 +40,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import HosidInputError
-from ..inference.calibrate import HANSEN_P
-from ..inference.system_estimate import estimate_system, system_state
+from ..inference.calibrate import calibrate
+from ..inference.estimate import Estimate
+from ..inference.system_estimate import centred, estimate_system, system_state
 from ..model.model import get_term
 from ..model.system import Element, System
 from ..record import Record
@@ -188,22 +189,21 @@ def extended(system: System, effect: str, k: int) -> System:
     return replace(system, elements=tuple(elements), values=())
 
 
-def _weigh(state, system, effect, k, start: dict[str, float]) -> Weighed:
+def _weigh(state, system, effect, k, start: dict[str, float]) -> tuple[Weighed, Estimate]:
+    """The pair's evidence and the extended system's estimate (module docstring)."""
     t0 = time.perf_counter()
     ext = extended(system, effect, k)
     param = f"{get_term(effect).params[0]}[{ext.elements[k].label}]"
-    theta0 = np.array([start.get(n, 0.0) for n in ext.param_names])
-    est = estimate_system(state, ext, start=theta0)
+    est = estimate_system(state, ext, start=[start.get(n, 0.0) for n in ext.param_names])
     i = ext.index(param)
-    test = est.test
-    disp = test["dispersion"] if test["df"] > 0 and test["p_value"] < HANSEN_P else 1.0
-    sd = math.sqrt(max(float(est.cov[i, i]) * max(disp, 1.0), 0.0))
+    disp = calibrate(est).dispersion  # Hansen's widening, as the posterior's
+    sd = math.sqrt(max(float(est.cov[i, i]) * disp, 0.0))
     value = float(est.theta[i])
     z = value / sd if sd > 0 else 0.0
     p = math.erfc(abs(z) / math.sqrt(2.0))
-    return Weighed(effect, ext.elements[k].label, param, value, sd, z, p,
-                   float(test["p_value"]), float(max(disp, 1.0)),
-                   time.perf_counter() - t0)  # fmt: skip
+    weighed = Weighed(effect, ext.elements[k].label, param, value, sd, z, p,
+                      float(est.test["p_value"]), disp, time.perf_counter() - t0)  # fmt: skip
+    return weighed, est
 
 
 def locate(
@@ -257,13 +257,12 @@ def locate(
     picked = record.select(system.dofs, measured=system.declared)
     checks = list(checks) if checks is not None else check_record(picked, unit=unit)
     reject_failures(checks, force=force)
-    states: dict[bool, Any] = {}
+    states: dict[bool, Any] = {}  # one state each for centred and uncentred systems
 
     def state_of(s: System):
-        centred = not any(t.params[0] in ("b2", "m") for _, t in s.columns)
-        if centred not in states:
-            states[centred] = system_state(record, s, block_seconds=block_seconds)
-        return states[centred]
+        if centred(s) not in states:
+            states[centred(s)] = system_state(record, s, block_seconds=block_seconds)
+        return states[centred(s)]
 
     current = system
     est = estimate_system(state_of(current), current)
@@ -271,14 +270,15 @@ def locate(
     while True:
         start = current.params(est.theta)
         todo = pairs(current, chosen)
-        weighed, failed = [], {}
+        weighed, failed, fits = [], {}, {}
         for effect, k in todo:
             label = f"{effect} in {current.elements[k].label}"
             if progress is not None:
                 progress(label)
             try:
-                weighed.append(_weigh(state_of(extended(current, effect, k)), current,
-                                      effect, k, start))  # fmt: skip
+                w, fits[label] = _weigh(state_of(extended(current, effect, k)), current,
+                                        effect, k, start)  # fmt: skip
+                weighed.append(w)
             except HosidInputError as exc:
                 failed[label] = str(exc)
         level = alpha / max(len(weighed), 1)
@@ -287,10 +287,8 @@ def locate(
         rounds.append(Round(current, weighed, failed, level, named))
         if named is None:
             break
-        current = extended(current, named.effect,
-                           [e.label for e in current.elements].index(named.element))  # fmt: skip
-        est = estimate_system(state_of(current), current,
-                              start=[start.get(n, 0.0) for n in current.param_names])  # fmt: skip
+        est = fits[named.label]  # the named pair's fit is the next round's system's
+        current = est.model
         if (max_effects is not None and len(rounds) >= max_effects) or not pairs(current, chosen):
             break
     sd = np.sqrt(np.maximum(np.diag(est.cov), 0.0))

@@ -44,7 +44,7 @@ from .estimate import Estimate, _solve_rounds, bounds, typical_scale
 from .gmm import hansen
 from .solutions import alternatives
 
-__all__ = ["estimate_system", "routed", "system_components"]
+__all__ = ["centred", "estimate_system", "routed", "system_components"]
 
 
 def system_components(cost: str | None = None) -> list:
@@ -83,8 +83,12 @@ def system_state(record: Record, system: System, *, block_seconds=None) -> Chain
     the displacements keep their offsets when an element has an asymmetric term.
     """
     record = record.select(system.dofs, measured=system.declared)
-    centred = not any(t.params[0] in ("b2", "m") for _, t in system.columns)
-    return ChainState.from_record(record, block_seconds=block_seconds, centred=centred)
+    return ChainState.from_record(record, block_seconds=block_seconds, centred=centred(system))
+
+
+def centred(system: System) -> bool:
+    """Whether the system's state is centred: no element has an asymmetric term."""
+    return not any(t.params[0] in ("b2", "m") for _, t in system.columns)
 
 
 def estimate_system(
