@@ -306,3 +306,30 @@ def test_excitation_shape_option_reads_the_table_and_keeps_old_ids(records, tmp_
     argv = ["batch", "estimate", path, "--excitation-shape", str(tmp_path / "no.csv")]
     assert main([*argv, "--out", str(out)]) == 2
     assert "no such file" in capsys.readouterr().err and not out.exists()
+
+
+def test_measured_option_declares_the_channels(tmp_path):
+    """``--measured acceleration``: a CSV of accelerations (its file says nothing of what
+    it holds) is estimated as the single oscillator's acceleration record, as ``hosid
+    estimate --measured acceleration`` does; the option enters the task's id only when
+    given.
+    """
+    from hosid.model.chain import simulate_chain, write_chain_record
+    from hosid.model.system import System
+
+    single = System.single("paper", hosid.PAPER_PARAMS)
+    rec = simulate_chain(single, duration=600.0, dt=0.02, rng=np.random.default_rng(3),
+                         measured="acceleration")  # fmt: skip
+    path = str(write_chain_record(rec, tmp_path / "acc.csv"))
+    plain = record_tasks([path], analysis="estimate", options={})[0].prepare()
+    same = record_tasks([path], analysis="estimate", options={"measured": None})[0].prepare()
+    assert same.id == plain.id
+    task = record_tasks([path], analysis="estimate", options={"measured": "acceleration"})[0]
+    task = task.prepare()
+    assert task.id != plain.id
+    row = run_task(task, task.seed_sequence()).row
+    assert row["status"] == "ok", row.get("message")
+    for k in ("a2", "n2"):  # within 4 of their sd of the truth
+        assert abs(row[f"{k}_mean"] - hosid.PAPER_PARAMS[k]) < 4.0 * row[f"{k}_sd"], k
+    with pytest.raises(HosidInputError, match="measured"):
+        record_tasks([path], analysis="estimate", options={"measured": "velocity"})

@@ -596,3 +596,19 @@ def test_a_second_command_on_a_busy_folder_stops_at_once(workdir, tmp_path, caps
         assert cli.main([*argv, "--out", str(out)]) == 2
         assert "is in use by 'hosid fit other.csv --out busy'" in one_error_line(capsys)
     assert (out / "theirs.txt").read_text() == "first"
+
+
+def test_estimate_reads_a_single_acceleration_channel(tmp_path, capsys):
+    """``hosid estimate REC.csv --measured acceleration`` on one channel: the one-element
+    chain's estimate, printed (it raised an AttributeError computing a1eq for a system).
+    """
+    from hosid.model.chain import simulate_chain, write_chain_record
+    from hosid.model.system import System
+
+    single = System.single("paper", PAPER_PARAMS)
+    rec = simulate_chain(single, duration=300.0, dt=0.02, rng=np.random.default_rng(4),
+                         measured="acceleration")  # fmt: skip
+    path = write_chain_record(rec, tmp_path / "acc.csv")
+    assert cli.main(["estimate", str(path), "--measured", "acceleration"]) == 0
+    out = capsys.readouterr().out
+    assert "System(x; ground-x" in out and out.count("\na2 ") == 1

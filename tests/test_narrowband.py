@@ -13,6 +13,7 @@ from hosid.components.identities import Identities
 from hosid.components.jets import time_derivatives
 from hosid.errors import HosidInputError
 from hosid.inference.estimate import estimate, prepare_state
+from hosid.inference.pilot import initial_theta, whitened_pilots
 from hosid.inference.solutions import select_solution
 from hosid.model import Model
 from hosid.model.excitation import Spectrum, squared_modulus
@@ -317,3 +318,21 @@ def test_the_white_limit_is_the_restricted_minimum_of_the_filter_s_own_J():
             assert float(-2.0 * q0(step)) >= J0 - 1e-6 * J0
     with pytest.raises(ValueError, match="narrowband_excitation"):
         white_limit(Model.from_spec("paper"), ql, theta[:5], log_params=[], scale=scale[:5])
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_a_filter_at_the_resonance_gets_a_pilot_near_it(seed):
+    """A filter peaked at the resonance of the ship-roll-like oscillator: the pilots
+    include one within 3 % of the filter's frequency and 8 % of the stiffness (the
+    coarse grid alone steps the frequency by 24 %: its nearest pilots were 11 % off, and
+    on a 40 000 s record of the independent simulator the solver started there ended at
+    Hansen's J = 45 on 7 df, against 4.7 at the true solution).
+    """
+    truth = {"a1": 0.03, "n1": 0.15, "a2": 0.35, "n2": 0.2, "S0": 2.6e-4, "wf": 0.6, "zf": 0.1}
+    model = Model.from_spec(NB)
+    rec = simulate(truth, duration=4000.0, dt=0.1, rng=np.random.default_rng(seed))
+    state = prepare_state(rec, model)
+    pilots = whitened_pilots(state, model, initial_theta(state, model))
+    i_a2, i_wf = model.index("a2"), model.index("wf")
+    near = [p for p in pilots if abs(p[i_wf] / 0.6 - 1.0) < 0.03]
+    assert near and any(abs(p[i_a2] / 0.35 - 1.0) < 0.08 for p in near)

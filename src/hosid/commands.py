@@ -100,6 +100,7 @@ def cmd_estimate(args) -> int:
     """``hosid estimate``: the calibrated mode, its sd and 90 % interval, no sampling."""
     from hosid.inference import components_for, estimate
     from hosid.inference.calibrate import calibrate
+    from hosid.model.system import System
 
     record = _read(args.record, args.measured)
     if args.json:
@@ -121,7 +122,7 @@ def cmd_estimate(args) -> int:
     names = list(est.model.param_names)
     values = est.theta.tolist()
     cov = cal.cov
-    if est.model.has("a1"):
+    if not isinstance(est.model, System) and est.model.has("a1"):  # a system: per element
         g = np.array(
             [t.damping_factor(est.sigma_v) for t in est.model.drift_terms]
             + [0.0] * (len(est.theta) - est.model.n_drift)

@@ -49,6 +49,15 @@ def _flags() -> tuple[tuple[str, str, tuple[str, ...], dict], ...]:
             {"metavar": "CSV", "help": "the force spectrum's known shape (omega, level)"},
         ),
         (
+            "--measured",
+            "measured",
+            _SPECTRAL,
+            {
+                "choices": ("displacement", "acceleration"),
+                "help": "what every channel holds; default what the file or system says",
+            },
+        ),
+        (
             "--cost",
             "cost",
             _SPECTRAL,

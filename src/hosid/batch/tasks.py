@@ -73,6 +73,7 @@ OPTIONS: dict[str, dict[str, Any]] = {
         "omega_max": None,
         "form": "scaled",
         "domain": "principal",
+        "measured": None,
     },
     "estimate": {
         "model": "paper",
@@ -82,6 +83,7 @@ OPTIONS: dict[str, dict[str, Any]] = {
         "omega_max": None,
         "form": "scaled",
         "domain": "principal",
+        "measured": None,
     },
     "diagnose": {
         "model": "paper",
@@ -97,14 +99,15 @@ OPTIONS: dict[str, dict[str, Any]] = {
 }
 #: Options added after batches had run: left out of a task's id at their default.
 LATER: dict[str, tuple[str, ...]] = {
-    "fit": ("excitation_shape",),
-    "estimate": ("excitation_shape",),
+    "fit": ("excitation_shape", "measured"),
+    "estimate": ("excitation_shape", "measured"),
     "diagnose": ("posterior", "candidate_gaps", "excitation_shape"),
 }
 #: The values an option may take (the others are checked by the analysis itself).
 CHOICES: dict[str, tuple[Any, ...]] = {
     "posterior": ("emcee", "screen"),
     "candidate_gaps": (True, False),
+    "measured": (None, "displacement", "acceleration"),
 }
 #: Files read as lists of records (one path or glob a line, ``#`` comments).
 MANIFEST_SUFFIXES = (".txt", ".lst", ".list")

@@ -110,11 +110,20 @@ def _with_shape(options: Mapping) -> dict:
     return o
 
 
+def _declared(record: Record, options: dict) -> Record:
+    """``record`` with every channel declared what ``options["measured"]`` says (popped;
+    ``None``: as its file says).
+    """
+    measured = options.pop("measured", None)
+    return record if measured is None else record.select(record.channels, measured=measured)
+
+
 def _fit(record: Record, options: Mapping, rng, truths, keep: bool):
     from ..inference import fit
     from ..output.results import attr
 
     o = _with_shape(options)
+    record = _declared(record, o)
     tree = fit(record, **o, seed=rng, progress=False, truths=truths, with_map=keep)
     params, row = _draw_stats(tree)
     return params, row, tree, attr(tree, "checks") or [], list(attr(tree, "model"))
@@ -125,12 +134,15 @@ def _estimate(record: Record, options: Mapping, rng, truths, keep: bool):
 
     t0 = time.perf_counter()
     o = _with_shape(options)
+    record = _declared(record, o)
     band = None if o["omega_max"] is None else (0.0, float(o["omega_max"]))
     comps = components_for(o["cost"], band=band, form=o["form"], domain=o["domain"])
     est = estimate(record, o["model"], comps, block_seconds=o["block_seconds"])
     values, sd = dict(est.values), dict(est.sd)
     names, cov = list(est.model.param_names), np.asarray(est.cov, dtype=float)
-    if est.model.has("a1"):  # eq (65) is linear in theta: its gradient is its value at e_i
+    # eq (65) is linear in theta: its gradient is its value at e_i (a system: per element,
+    # in its fit's summary)
+    if isinstance(est.model, Model) and est.model.has("a1"):
         g = est.model.equivalent_damping(np.eye(len(est.theta)), est.sigma_v)
         values["a1eq"] = float(g @ est.theta)
         sd["a1eq"] = math.sqrt(float(g @ est.cov @ g))
@@ -180,6 +192,7 @@ def _diagnose(record: Record, options: Mapping, rng, truths, keep: bool):
 
     t0 = time.perf_counter()
     o = _with_shape(options)
+    record = _declared(record, o)
     settings = {k: o[k] for k in OPTIONS["diagnose"] if k in o and k != "model"}
     d = diagnose(record, o["model"], rng=rng, **settings)
     rep = d.report()

@@ -144,7 +144,7 @@ def _level(R: np.ndarray, Lk: np.ndarray, alpha: np.ndarray, beta: np.ndarray) -
 
 
 def whitened_pilots(
-    state: RecordState, model: Model, theta: np.ndarray, n_best: int = 4
+    state: RecordState, model: Model, theta: np.ndarray, n_best: int = 6
 ) -> list[np.ndarray]:
     r"""Pilots of a model whose force goes through a shaping filter: over a grid of the
     filter's :math:`(\omega_f, \zeta_f)` (:math:`\omega_n/4` to :math:`100\,\omega_N`,
@@ -153,74 +153,115 @@ def whitened_pilots(
     and the level equation :math:`D`, as for a white force; the inferred force's
     standardized periodogram :math:`\bar P_k/S_0L_k` should be flat on the J2 band (least
     squares about 1).  The up to ``n_best`` deepest local minima of that
-    misfit over the :math:`(\omega_f, \zeta_f)` grid (lower than their eight neighbours)
-    are returned, best first: a filter near the oscillator's
-    resonance can fit the spectrum with the two swapped, and the estimate keeps the
-    solution that every start's weight accepts best
+    misfit (lower than their eight neighbours) are returned, best first: a filter near the
+    oscillator's resonance can fit the spectrum with the two swapped, and the estimate
+    keeps the solution that every start's weight accepts best
     (:func:`hosid.inference.estimate.select_solution`).
+
+    The coarse grid (48 x 16 points) steps :math:`\omega_f` by a factor 1.23; a filter
+    peaked at the resonance then has its true and swapped minima between two points, and
+    the solver started at the nearer one ended in a third solution.  Measured on a ship-
+    roll-like record (40 000 s, filter and oscillator both at 0.6 rad/s): the two coarse
+    minima led to solutions with Hansen's :math:`J` 45 and 1000 on 7 df, the true one
+    has 4.7.  A finer grid over :math:`\omega_n/2` to :math:`2\omega_n` (factor 1.04,
+    :math:`\zeta_f` factor 1.2) adds its own minima.
 
     Raises
     ------
     HosidInputError
         If no point of the grid gives a positive level.
     """
-    spectrum = Spectrum(model)
-    nd = model.n_drift
-    M = spectrum.order
-    st = whitened_statistics(state, model, list(range(nd)), np.zeros((M + 2, M + 2)))
-    pairs = sorted(st["Q"])
-    Qm = np.stack([st["Q"][k].mean(axis=0) for k in pairs])
-    Cm = np.stack([st["C"][k].mean(axis=0) for k in pairs])
-    em = st["e"].mean(axis=0)
-    L = state.layout
-    bins = L.bins(*default_band(state), k_min=2)
-    omega = bins * L.d_omega
-    Y = feature_ffts(state, model, 0.0, bins)
-    R = np.einsum("ibk,jbk->kij", Y, Y.conj()).real / (L.B * 2 * math.pi * L.T * state.window.k2)
+    misfit = _PilotMisfit(state, model, theta)
     s = state.scales
-    i_S0 = model.index("S0")
     if model.has("wf"):
-        i_wf, i_zf = model.index("wf"), model.index("zf")
-        wfs = np.geomspace(0.25 * s.omega_n, 100.0 * s.omega_nyquist, 48)
-        zfs = np.geomspace(0.02, 2.0, 16)
+        grids = [
+            (
+                np.geomspace(0.25 * s.omega_n, 100.0 * s.omega_nyquist, 48),
+                np.geomspace(0.02, 2.0, 16),
+            ),
+            (np.geomspace(0.5 * s.omega_n, 2.0 * s.omega_n, 36), np.geomspace(0.02, 2.0, 26)),
+        ]
     else:  # a measured shape: the filter is fixed
-        i_wf = i_zf = None
-        wfs, zfs = np.array([np.nan]), np.array([np.nan])
-    cost = np.full((wfs.size, zfs.size), np.inf)
-    found = {}
-    for a, wf in enumerate(wfs):
-        for b, zf in enumerate(zfs):
-            th = theta.copy()
-            if i_wf is not None:
-                th[i_wf], th[i_zf] = wf, zf
-            p = [float(c) for c in spectrum.operator(th)]
-            Wp = np.array([p[m] * p[n] for m, n in pairs])
-            try:
-                alpha = np.linalg.solve(np.einsum("q,qjk->jk", Wp, Qm), -(Wp @ Cm))
-                beta = np.linalg.solve(np.einsum("q,qjk->jk", Wp, Qm), em)
-            except np.linalg.LinAlgError:
-                continue
-            Lk = spectrum.shape(omega, th)
-            D = _level(R, Lk, alpha, beta)
-            if D is None:
-                continue
-            lam = np.concatenate([[1.0], alpha + beta * D])
-            h = np.einsum("kij,i,j->k", R, lam, lam) / (D / math.pi * Lk) - 1.0
-            cost[a, b] = float(np.sum(h**2))
-            th[:nd], th[i_S0] = lam[1:], D / math.pi
-            found[a, b] = th
-    if not found:
+        grids = [(np.array([np.nan]), np.array([np.nan]))]
+    ranked: list[tuple[float, np.ndarray]] = []
+    for wfs, zfs in grids:
+        ranked += misfit.minima(wfs, zfs)
+    if not ranked:
         raise HosidInputError(
             "no positive excitation level explains the record's force spectrum through a "
             "shaping filter: the record does not look like a randomly excited oscillator "
             "of this model"
         )
-    # the grid's local minima (each at most its eight neighbours), best first
-    padded = np.pad(cost, 1, constant_values=np.inf)
-    near = np.stack(
-        [np.roll(np.roll(padded, i, 0), j, 1)[1:-1, 1:-1] for i in (-1, 0, 1) for j in (-1, 0, 1)
-         if (i, j) != (0, 0)]
-    )  # fmt: skip
-    minima = np.argwhere(np.isfinite(cost) & np.all(cost <= near, axis=0))
-    ranked = sorted(map(tuple, minima), key=lambda ab: cost[ab])
-    return [found[ab] for ab in ranked[:n_best]]
+    ranked.sort(key=lambda ct: ct[0])
+    out: list[np.ndarray] = []
+    for _, th in ranked:
+        if all(not np.allclose(th, o, rtol=1e-9) for o in out):
+            out.append(th)
+    return out[:n_best]
+
+
+class _PilotMisfit:
+    """The pilot's misfit of :func:`whitened_pilots` at any filter ``(wf, zf)``: the
+    record's statistics computed once.
+    """
+
+    def __init__(self, state: RecordState, model: Model, theta: np.ndarray):
+        self.model, self.theta = model, theta
+        self.spectrum = Spectrum(model)
+        M = self.spectrum.order
+        st = whitened_statistics(
+            state, model, list(range(model.n_drift)), np.zeros((M + 2, M + 2))
+        )
+        self.pairs = sorted(st["Q"])
+        self.Qm = np.stack([st["Q"][k].mean(axis=0) for k in self.pairs])
+        self.Cm = np.stack([st["C"][k].mean(axis=0) for k in self.pairs])
+        self.em = st["e"].mean(axis=0)
+        L = state.layout
+        bins = L.bins(*default_band(state), k_min=2)
+        self.omega = bins * L.d_omega
+        Y = feature_ffts(state, model, 0.0, bins)
+        self.R = np.einsum("ibk,jbk->kij", Y, Y.conj()).real / (
+            L.B * 2 * math.pi * L.T * state.window.k2
+        )
+
+    def at(self, wf: float, zf: float) -> tuple[float, np.ndarray] | None:
+        """The misfit and the pilot with the filter at ``(wf, zf)`` (NaN: the model's
+        fixed shape), or ``None`` where no positive level exists.
+        """
+        model, nd = self.model, self.model.n_drift
+        th = self.theta.copy()
+        if not math.isnan(wf):
+            th[model.index("wf")], th[model.index("zf")] = wf, zf
+        p = [float(c) for c in self.spectrum.operator(th)]
+        Wp = np.array([p[m] * p[n] for m, n in self.pairs])
+        try:
+            A = np.einsum("q,qjk->jk", Wp, self.Qm)
+            alpha = np.linalg.solve(A, -(Wp @ self.Cm))
+            beta = np.linalg.solve(A, self.em)
+        except np.linalg.LinAlgError:
+            return None
+        Lk = self.spectrum.shape(self.omega, th)
+        D = _level(self.R, Lk, alpha, beta)
+        if D is None:
+            return None
+        lam = np.concatenate([[1.0], alpha + beta * D])
+        h = np.einsum("kij,i,j->k", self.R, lam, lam) / (D / math.pi * Lk) - 1.0
+        th[:nd], th[model.index("S0")] = lam[1:], D / math.pi
+        return float(np.sum(h**2)), th
+
+    def minima(self, wfs: np.ndarray, zfs: np.ndarray) -> list[tuple[float, np.ndarray]]:
+        """The grid's local minima (each at most its eight neighbours): (misfit, pilot)."""
+        cost = np.full((wfs.size, zfs.size), np.inf)
+        found = {}
+        for a, wf in enumerate(wfs):
+            for b, zf in enumerate(zfs):
+                r = self.at(float(wf), float(zf))
+                if r is not None:
+                    cost[a, b], found[a, b] = r
+        padded = np.pad(cost, 1, constant_values=np.inf)
+        near = np.stack(
+            [np.roll(np.roll(padded, i, 0), j, 1)[1:-1, 1:-1]
+             for i in (-1, 0, 1) for j in (-1, 0, 1) if (i, j) != (0, 0)]
+        )  # fmt: skip
+        minima = np.argwhere(np.isfinite(cost) & np.all(cost <= near, axis=0))
+        return [(float(cost[tuple(ab)]), found[tuple(ab)]) for ab in minima]
