@@ -47,6 +47,7 @@ SYSTEMS = {"paper": (PAPER, 2000.0, 0.02), "ship": (SHIP, 4000.0, 0.1)}
 CASES = {
     "paper_below": ("paper", 1, 4.0, 0.2),
     "paper_above": ("paper", 2, 7.0, 0.2),
+    "paper_at": ("paper", 8, 5.0, 0.2),
     "paper_twice": ("paper", 3, 13.0, 0.3),
     "ship_below": ("ship", 4, 0.45, 0.1),
     "ship_at": ("ship", 5, 0.6, 0.1),
