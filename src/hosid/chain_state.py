@@ -27,8 +27,10 @@ times; the statistics are stationary, so the common shift does not matter).  Its
 (what a displacement channel lacks there, :math:`\pi^2S_0/6m^2\omega_N`, a differentiated
 record lacks; these samples are the velocity itself).  What the displacement lacks is its
 part below the band's filter, and what it holds in excess the trapezoid rule's random walk
-(spectrum :math:`S_0\Delta t^2/12m^2\omega^2`): both are restored by the components
-(:mod:`hosid.components.chain_features`).  A Fourier integration of the whole segment
+(spectrum :math:`S_0\Delta t^2/12m^2\omega^2`): the components restore both
+(:mod:`hosid.components.chain_features`), the identities the random walk and, for the
+missing part, their statistics extrapolated from the band edge and twice it
+(:meth:`ChainState.rebanded`).  A Fourier integration of the whole segment
 (:func:`hosid.spectra.integrate.integrate_acceleration`, the record checks') takes it to be
 periodic, and its sharp edge spreads the periodic extension's kink over the segment: on
 2000 s of the study's 2-dof chain (:math:`\omega_L` = 0.1 rad/s) its displacement's error
@@ -48,6 +50,7 @@ the equations' covariance better (2000 s of the study's 2-dof chain: 97 blocks o
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -270,6 +273,28 @@ class ChainState:
             "segments": self.record.n_segments,
             "window": self.window.name,
         }
+
+    def rebanded(self, factor: float) -> ChainState:
+        """The same record with every acceleration channel integrated above ``factor``
+        times its band edge, on this state's blocks (made once per state and factor).
+        """
+
+        def make():
+            q, v, a = self.q.copy(), self.v.copy(), self.a.copy()
+            channels = list(self.channels)
+            for k, c in enumerate(self.channels):
+                if c.band is None:
+                    continue
+                band = dataclasses.replace(c.band, omega_low=factor * c.band.omega_low)
+                x = self.record.channel(c.name).x
+                q[k], v[k], a[k] = integrate_in_time(
+                    x, self.dt, omega_low=band.omega_low, bounds=self.record.bounds
+                )
+                channels[k] = dataclasses.replace(c, band=band)
+            return ChainState(self.record, q, v, a, tuple(channels), self.layout, self.window,
+                              self.centred, self.repeats)  # fmt: skip
+
+        return self.cached(("rebanded", float(factor)), make)
 
     def band_notes(self) -> list[str]:
         """One sentence per acceleration channel: the band it was integrated in."""

@@ -165,9 +165,36 @@ class ChainIdentities:
                 extra = 0.0
                 if w.kind == "x":
                     cov = float(np.sum(system.incidence[ea] * g * rest.s2))
-                    extra = (t.phi(rb[ea], 1) * (rdb[ea] * gvb + cov)).mean(axis=1)
+                    slope = t.phi(rb[ea], 1)
+                    if Cr[ea, ea]:  # restored for the displacement's missing part, as P is
+                        slope = slope + 0.5 * Cr[ea, ea] * t.phi(rb[ea], 3)
+                    extra = (slope * (rdb[ea] * gvb + cov)).mean(axis=1)
             const[:, a] = (G[nxt] - G[first]) / T - extra
         return P, const, e_, rws
+
+    def extrapolated(self, state: ChainState, system: System, theta: np.ndarray):
+        r""":meth:`statistics` of a record with acceleration channels, extrapolated to a
+        band edge :math:`\omega_L \to 0` (Richardson): every statistic :math:`s` of the
+        state integrated above :math:`\omega_L` and above :math:`2\omega_L`
+        (:meth:`hosid.chain_state.ChainState.rebanded`), each restored for the trapezoid
+        rule's random walk only, gives :math:`2s(\omega_L) - s(2\omega_L)`, block by
+        block.  The displacement missing below the band (variance :math:`\propto
+        \omega_L` for a spectrum flat there) moves every statistic in proportion to
+        :math:`\omega_L`, whatever its dependence on the rest; the random walk, independent
+        of the state, is restored exactly to second order.  Restoring the missing part as
+        an independent Gaussian instead (:func:`hosid.components.chain_features.
+        restoration`) fits no nonlinear record: on 2000 s of the paper oscillator from
+        its accelerations its effect on :math:`E[x^4]` was 1.6 times its effect on
+        :math:`E[x^2]` (an independent part: 2.5 times), and the cubic stiffness's
+        identity at the truth was 1.7 sd off with the missing variance right and 1 sd
+        the other way with it a third as large; extrapolated, the four identities lay
+        within 0.6 sd of a displacement record's of the same motion (two 2000 s records
+        and one of 600 s, where the restored estimate of :math:`a_2` had been 20 % high).
+        """
+        one = self.statistics(state, system, restoration(state, system, theta, lost=False))
+        wide = state.rebanded(2.0)
+        two = self.statistics(wide, system, restoration(wide, system, theta, lost=False))
+        return (*(2.0 * a - b for a, b in zip(one[:3], two[:3], strict=True)), one[3])
 
     @staticmethod
     def _low(cols, w, c, rb, Cr, q0, d0) -> np.ndarray:
@@ -191,7 +218,10 @@ class ChainIdentities:
         """Block statistics of the identities (module docstring)."""
         th0 = np.asarray(pilot, dtype=float)
         rest = restoration(state, system, th0)
-        P, const, e_, rws = self.statistics(state, system, rest)
+        if any(c.band is not None for c in state.channels):
+            P, const, e_, rws = self.extrapolated(state, system, th0)
+        else:
+            P, const, e_, rws = self.statistics(state, system, rest)
         nd = system.n_drift
         mean = combine(system, rws, P.mean(0), const.mean(0), e_.mean(0))
         T3, G2 = _weights(system, rws)
