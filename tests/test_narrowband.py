@@ -2,6 +2,7 @@
 record, the identities of the augmented state, the simulator and the estimate.
 """
 
+import importlib
 import math
 
 import numpy as np
@@ -322,17 +323,40 @@ def test_the_white_limit_is_the_restricted_minimum_of_the_filter_s_own_J():
 
 @pytest.mark.parametrize("seed", [0, 5])
 def test_a_filter_at_the_resonance_gets_a_pilot_near_it(seed):
-    """A filter peaked at the resonance of the ship-roll-like oscillator: the pilots
-    include one within 3 % of the filter's frequency and 8 % of the stiffness (the
-    coarse grid alone steps the frequency by 24 %: its nearest pilots were 11 % off, and
-    on a 40 000 s record of the independent simulator the solver started there ended at
+    """A filter peaked at the resonance of the ship-roll-like oscillator: the refined
+    pilots include one within 3 % of the filter's frequency and 8 % of the stiffness (the
+    coarse grid steps the frequency by 24 %: its nearest pilots were 11 % off, and on a
+    40 000 s record of the independent simulator the solver started there ended at
     Hansen's J = 45 on 7 df, against 4.7 at the true solution).
     """
     truth = {"a1": 0.03, "n1": 0.15, "a2": 0.35, "n2": 0.2, "S0": 2.6e-4, "wf": 0.6, "zf": 0.1}
     model = Model.from_spec(NB)
     rec = simulate(truth, duration=4000.0, dt=0.1, rng=np.random.default_rng(seed))
     state = prepare_state(rec, model)
-    pilots = whitened_pilots(state, model, initial_theta(state, model))
+    pilots = whitened_pilots(state, model, initial_theta(state, model), refine=True)
     i_a2, i_wf = model.index("a2"), model.index("wf")
     near = [p for p in pilots if abs(p[i_wf] / 0.6 - 1.0) < 0.03]
     assert near and any(abs(p[i_a2] / 0.35 - 1.0) < 0.08 for p in near)
+
+
+@pytest.mark.parametrize("passes", [True, False])
+def test_refined_pilots_only_where_no_coarse_solution_passes(passes, monkeypatch):
+    """The estimate tries the refined pilots only when no coarse start's solution passes
+    its Hansen test (``whitened_pilots`` docstring: tried always, they found swapped
+    solutions the data do not reject).
+    """
+    est_mod = importlib.import_module("hosid.inference.estimate")
+
+    calls = []
+    real = est_mod.whitened_pilots
+
+    def spy(*args, refine=False, **kwargs):
+        calls.append(refine)
+        return real(*args, refine=refine, **kwargs)
+
+    monkeypatch.setattr(est_mod, "whitened_pilots", spy)
+    monkeypatch.setattr(est_mod, "acceptable", lambda found, df: passes)
+    truth = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
+    rec = simulate(truth, duration=600.0, dt=0.02, rng=np.random.default_rng(2))
+    est_mod.estimate(rec, NB, settle=False)
+    assert calls == ([False] if passes else [False, True])

@@ -71,7 +71,7 @@ from .maps import likelihood_map
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
 from .settle import settled_note, settled_term, white_limit
-from .solutions import alternatives, select_solution
+from .solutions import acceptable, alternatives, select_solution, solved
 
 __all__ = [
     "COSTS",
@@ -317,17 +317,17 @@ def estimate(
     lower, upper = bounds(
         model, support, lambda: model.default_priors(state.scales, constrained=False)
     )
-    failure, found = None, []
-    for theta0 in starts:
-        try:
-            theta, ql = _solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
-        except HosidInputError as exc:  # another start may do (a white filter is degenerate)
-            failure = failure or exc
-            continue
-        found.append((theta, ql, theta0))
+
+    def one(theta0):  # another start may do where one fails (a white filter is degenerate)
+        return _solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
+
+    found, failure = solved(starts, one)
+    df = hansen(found[0][1], found[0][0])["df"] if found else 0
+    if whitening and start is None and found and not acceptable(found, df):
+        more = whitened_pilots(state, model, initial_theta(state, model), refine=True)
+        found += solved(more, one)[0]
     if not found:
         raise failure
-    df = hansen(found[0][1], found[0][0])["df"]
     theta, ql, theta0 = found[select_solution([(t, q) for t, q, _ in found], df)]
     test = None
     if settle and settled_term(model):
@@ -360,8 +360,7 @@ def estimate(
     # spread than a quarter of its prior's width
     sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
     cap = np.where(np.isfinite(upper - lower), 0.25 * (upper - lower), np.inf)
-    f = np.minimum(1.0, cap / sd)
-    cov = cov * np.outer(f, f)
+    cov = cov * np.outer(*(2 * [np.minimum(1.0, cap / sd)]))
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
     others = alternatives(ql, theta, solutions, cov, J_best)

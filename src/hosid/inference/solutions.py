@@ -15,9 +15,32 @@ from collections.abc import Sequence
 import numpy as np
 from scipy import stats
 
+from ..errors import HosidInputError
 from .gmm import HANSEN_P, QuasiLikelihood
 
-__all__ = ["alternatives", "select_solution"]
+__all__ = ["acceptable", "alternatives", "select_solution", "solved"]
+
+
+def solved(starts, solve_one) -> tuple[list, HosidInputError | None]:
+    """``(theta, ql, start)`` of every start that ``solve_one(start) -> (theta, ql)``
+    solves, and the first input error of those that fail.
+    """
+    failure, found = None, []
+    for theta0 in starts:
+        try:
+            theta, ql = solve_one(theta0)
+        except HosidInputError as exc:
+            failure = failure or exc
+            continue
+        found.append((theta, ql, theta0))
+    return found, failure
+
+
+def acceptable(found, df: int) -> bool:
+    """Whether any solution ``(theta, ql, start)`` passes its own Hansen test on ``df``
+    degrees of freedom (p at least :data:`hosid.inference.gmm.HANSEN_P`).
+    """
+    return any(stats.chi2.sf(float(-2.0 * ql(th)), df) >= HANSEN_P for th, ql, _ in found)
 
 
 def select_solution(found: Sequence[tuple[np.ndarray, QuasiLikelihood]], df: int) -> int:
