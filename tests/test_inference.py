@@ -462,3 +462,20 @@ def test_fit_with_the_papers_cost(short_paper_record):
     assert set(tree["log_likelihood"].data_vars) == {"identities", "J2", "J4A"}
     info = json.loads(tree.attrs["components_info_json"])["J4A"]
     assert info["triples"] > 1000
+
+
+def test_walkers_start_from_an_indefinite_or_ill_scaled_covariance():
+    """The walkers' ball accepts a covariance that is indefinite or spans many decades
+    (white noise forced through ``hosid fit --force`` raised numpy's RuntimeWarning): the
+    nearest positive semi-definite matrix, eigenvalues floored at 1e-12 of the largest.
+    """
+    from hosid.inference.sampler import _nearest_psd
+
+    c = np.array([[1.0, 2.0], [2.0, 1.0]])  # eigenvalues 3 and -1
+    w = np.linalg.eigvalsh(_nearest_psd(c))
+    assert w.min() > 0 and w.max() == pytest.approx(3.0)
+    d = np.diag([1e8, 1.0, 1e-3])  # spans 11 decades: kept as it is
+    np.testing.assert_allclose(_nearest_psd(d), d, rtol=1e-9, atol=1e-9)
+    rng = np.random.default_rng(0)
+    rng.multivariate_normal(np.zeros(3), _nearest_psd(d), size=4, method="eigh",
+                            check_valid="ignore")  # fmt: skip

@@ -273,6 +273,17 @@ def _burn(sampler, done: int) -> int:
     return min(math.ceil(3 * _tau_max(sampler, done)), done // 2)
 
 
+def _nearest_psd(c: np.ndarray) -> np.ndarray:
+    """``c`` symmetrized with its eigenvalues held at least 1e-12 of the largest (the
+    Laplace covariance of a record the equations barely describe can be indefinite, and
+    numpy's own check of a valid one fails when its entries span many decades: white
+    noise forced through ``hosid fit --force`` raised a RuntimeWarning there).
+    """
+    w, V = np.linalg.eigh(0.5 * (c + c.T))
+    w = np.maximum(w, 1e-12 * max(float(np.max(np.abs(w))), 1e-300))
+    return (V * w) @ V.T
+
+
 def _start(target, modes, cov, logs, rng, n_walkers) -> np.ndarray:
     """Walkers in a ball around the modes (split evenly), all with finite probability."""
     out = []
@@ -283,13 +294,14 @@ def _start(target, modes, cov, logs, rng, n_walkers) -> np.ndarray:
         scale = np.ones_like(mode)
         scale[logs] = 1.0 / np.abs(mode[logs])
         c = c * np.outer(scale, scale)
-        c = 0.5 * (c + c.T) + 1e-12 * np.eye(c.shape[0]) * np.max(np.abs(np.diag(c)))
+        c = _nearest_psd(c)
         u0 = mode.copy()
         u0[logs] = np.log(mode[logs])
         got = np.empty((0, mode.size))
         spread = 0.3
         for _ in range(60):
-            draw = rng.multivariate_normal(u0, spread**2 * c, size=4 * idx.size)
+            draw = rng.multivariate_normal(u0, spread**2 * c, size=4 * idx.size,
+                                           method="eigh", check_valid="ignore")  # fmt: skip
             ok = np.isfinite(target(draw)[:, 0])
             got = np.concatenate([got, draw[ok]])
             if got.shape[0] >= idx.size:
