@@ -333,3 +333,31 @@ def test_measured_option_declares_the_channels(tmp_path):
         assert abs(row[f"{k}_mean"] - hosid.PAPER_PARAMS[k]) < 4.0 * row[f"{k}_sd"], k
     with pytest.raises(HosidInputError, match="measured"):
         record_tasks([path], analysis="estimate", options={"measured": "velocity"})
+
+
+def test_diagnose_with_a_system_file_locates(tmp_path):
+    """``hosid batch diagnose REC --model SYSTEM.toml``: the (effect, element) pairs of
+    ``hosid diagnose`` with a system file (it failed as an unknown model term).
+    """
+    from hosid.model.chain import simulate_chain, write_chain_record
+    from hosid.model.system import System
+
+    head = 'dofs = ["x1", "x2"]\n[[element]]\nbetween = ["ground", "x1"]\n'
+    head += 'terms = ["linear_damping", "linear_stiffness"]\n[[element]]\n'
+    head += 'between = ["x1", "x2"]\nterms = ["linear_damping", "linear_stiffness"'
+    values = {"a1[ground-x1]": 0.3, "a2[ground-x1]": 25.0, "a1[x1-x2]": 0.2,
+              "a2[x1-x2]": 15.0, "n2[x1-x2]": 10.0, "mass[x2]": 0.8, "S0[x1]": 2.0,
+              "S0[x2]": 2.0}  # fmt: skip
+    truth = head + ', "cubic_stiffness"]\n[values]\n'
+    truth += "".join(f'"{k}" = {v}\n' for k, v in values.items())
+    (tmp_path / "base.toml").write_text(head + "]\n")
+    (tmp_path / "truth.toml").write_text(truth)
+    system = System.from_toml(tmp_path / "truth.toml")
+    rec = simulate_chain(system, duration=600.0, dt=0.02, rng=np.random.default_rng(5))
+    path = str(write_chain_record(rec, tmp_path / "rec.npz"))
+    opts = {"model": str(tmp_path / "base.toml")}
+    task = record_tasks([path], analysis="diagnose", options=opts)[0].prepare()
+    row = run_task(task, task.seed_sequence()).row
+    assert row["status"] == "ok", row.get("message")
+    assert row["named_effect"].split("+")[0] == "cubic_stiffness in x1-x2", row["evidence"]
+    assert "n2[x1-x2]_mean" in row and "a2[ground-x1]_q95" in row

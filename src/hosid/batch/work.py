@@ -193,6 +193,8 @@ def _diagnose(record: Record, options: Mapping, rng, truths, keep: bool):
     t0 = time.perf_counter()
     o = _with_shape(options)
     record = _declared(record, o)
+    if str(o["model"]).lower().endswith(".toml"):
+        return _locate(record, o, t0)
     settings = {k: o[k] for k in OPTIONS["diagnose"] if k in o and k != "model"}
     d = diagnose(record, o["model"], rng=rng, **settings)
     rep = d.report()
@@ -214,6 +216,34 @@ def _diagnose(record: Record, options: Mapping, rng, truths, keep: bool):
     )
     row["final_model"] = "+".join(rep["final_model"])
     return params, row, tree, rep["checks"], list(rep["final_model"])
+
+
+def _locate(record: Record, o: Mapping, t0: float):
+    """``diagnose`` with a system file (``hosid diagnose REC --model SYSTEM.toml``): the
+    missing (effect, element) pairs (:func:`hosid.check.locate.locate`); the row holds
+    ``named_effect``, ``decision`` and every round's z by pair (``evidence``), the final
+    system's estimate with its Gaussian quantiles.
+    """
+    from ..check.locate import locate
+    from ..model.system import System
+
+    loc = locate(record, System.from_toml(o["model"]), candidates=o["candidates"],
+                 alpha=o["alpha"], max_effects=o["max_effects"])  # fmt: skip
+    params = {
+        p: {
+            "mean": v,
+            "sd": loc.sd[p],
+            **{q: v + z * loc.sd[p] for q, z in zip(_QUANTILES, _GAUSS_Z, strict=True)},
+        }
+        for p, v in loc.estimate.items()
+    }
+    row = {
+        "named_effect": "+".join(loc.named_effects),
+        "decision": loc.decision,
+        "evidence": json.dumps([{w.label: round(w.z, 3) for w in r.weighed} for r in loc.rounds]),
+        "fit_seconds": time.perf_counter() - t0,
+    }
+    return params, row, None, loc.record_checks, list(loc.final.param_names)
 
 
 _RUN = {"fit": _fit, "estimate": _estimate, "diagnose": _diagnose}
