@@ -129,6 +129,15 @@ def _fit(record: Record, options: Mapping, rng, truths, keep: bool):
     return params, row, tree, attr(tree, "checks") or [], list(attr(tree, "model"))
 
 
+def _gaussian(values: Mapping[str, float], sd: Mapping[str, float]) -> dict[str, dict]:
+    """Per parameter its mean, sd and the Gaussian quantiles of the table's columns."""
+    return {
+        p: {"mean": v, "sd": sd[p],
+            **{q: v + z * sd[p] for q, z in zip(_QUANTILES, _GAUSS_Z, strict=True)}}
+        for p, v in values.items()
+    }  # fmt: skip
+
+
 def _estimate(record: Record, options: Mapping, rng, truths, keep: bool):
     from ..inference import components_for, estimate
 
@@ -149,14 +158,7 @@ def _estimate(record: Record, options: Mapping, rng, truths, keep: bool):
         gc = cov @ g
         cov = np.block([[cov, gc[:, None]], [gc[None, :], np.array([[g @ gc]])]])
         names.append("a1eq")
-    params = {
-        p: {
-            "mean": values[p],
-            "sd": sd[p],
-            **{q: values[p] + z * sd[p] for q, z in zip(_QUANTILES, _GAUSS_Z, strict=True)},
-        }
-        for p in values
-    }
+    params = _gaussian(values, sd)
     row = {
         "hansen_J": est.test.get("J"),
         "hansen_df": est.test.get("df"),
@@ -229,14 +231,7 @@ def _locate(record: Record, o: Mapping, t0: float):
 
     loc = locate(record, System.from_toml(o["model"]), candidates=o["candidates"],
                  alpha=o["alpha"], max_effects=o["max_effects"])  # fmt: skip
-    params = {
-        p: {
-            "mean": v,
-            "sd": loc.sd[p],
-            **{q: v + z * loc.sd[p] for q, z in zip(_QUANTILES, _GAUSS_Z, strict=True)},
-        }
-        for p, v in loc.estimate.items()
-    }
+    params = _gaussian(loc.estimate, loc.sd)
     row = {
         "named_effect": "+".join(loc.named_effects),
         "decision": loc.decision,

@@ -40,7 +40,14 @@ def acceptable(found, df: int) -> bool:
     """Whether any solution ``(theta, ql, start)`` passes its own Hansen test on ``df``
     degrees of freedom (p at least :data:`hosid.inference.gmm.HANSEN_P`).
     """
-    return any(stats.chi2.sf(float(-2.0 * ql(th)), df) >= HANSEN_P for th, ql, _ in found)
+    return any(passes(float(-2.0 * ql(th)), df) for th, ql, _ in found)
+
+
+def passes(J: float, df: int) -> bool:
+    """Whether Hansen's :math:`J` on ``df`` degrees of freedom has p of at least
+    :data:`hosid.inference.gmm.HANSEN_P`.
+    """
+    return bool(stats.chi2.sf(J, df) >= HANSEN_P)
 
 
 def select_solution(found: Sequence[tuple[np.ndarray, QuasiLikelihood]], df: int) -> int:
@@ -75,14 +82,11 @@ def select_solution(found: Sequence[tuple[np.ndarray, QuasiLikelihood]], df: int
     if len(found) == 1 or df <= 0:
         return int(np.argmin(own))
 
-    def passes(J: float) -> bool:
-        return bool(stats.chi2.sf(J, df) >= HANSEN_P)
-
-    judges = [i for i in range(len(found)) if passes(own[i])]
+    judges = [i for i in range(len(found)) if passes(own[i], df)]
     kept = [
         j
         for j, (theta, _) in enumerate(found)
-        if all(passes(float(-2.0 * found[i][1](theta))) for i in judges if i != j)
+        if all(passes(float(-2.0 * found[i][1](theta)), df) for i in judges if i != j)
     ]
     pool = kept or range(len(found))
     return min(pool, key=lambda j: own[j])
