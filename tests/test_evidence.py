@@ -12,7 +12,7 @@ import pytest
 from scipy import stats
 
 from hosid.check.evidence import COORDINATES, Coordinate, Evidence, critical_z, screen, weigh
-from hosid.check.selection import Round, null_min_p
+from hosid.check.selection import Round, null_min_log_p
 from hosid.components.base import Moments
 from hosid.errors import HosidInputError
 from hosid.inference.estimate import estimate
@@ -65,7 +65,7 @@ def test_j_difference_references():
     assert t["D"] == pytest.approx(3.841459) and t["p_value"] == pytest.approx(0.05, rel=1e-5)
     t = j_difference(10.0, 10.0 - 2.705543, boundary=True)  # chi-bar: 0.5 chi2(1) tail
     assert t["p_value"] == pytest.approx(0.05, rel=1e-5) and "chi-bar" in t["reference"]
-    assert j_difference(1.0, 2.0, boundary=True) == {**t, "D": 0.0, "p_value": 1.0}
+    assert j_difference(1.0, 2.0, boundary=True) == {**t, "D": 0.0, "p_value": 1.0, "log_p": 0.0}
     assert j_difference(8.0, 0.0, dispersion=2.0)["D"] == 4.0
     assert j_difference(9.0, 1.0, df=2)["p_value"] == pytest.approx(stats.chi2.sf(8.0, 2))
     with pytest.raises(ValueError, match="one parameter"):
@@ -145,7 +145,7 @@ def _ev(effect, z, p, boundary=False):
 
 def test_round_adjusts_by_the_replicates_smallest_p_values():
     ev = {"a": _ev("a", 4.0, 1e-4), "b": _ev("b", 3.0, 0.003), "c": _ev("c", 1.0, 0.3)}
-    null = np.array([0.002, 0.05, 0.2, 0.5] + [0.9] * 15)  # R = 19
+    null = np.log([0.002, 0.05, 0.2, 0.5] + [0.9] * 15)  # R = 19
     rnd = Round(Model.from_spec("paper"), ev, {}, 0.05, 5, null, replicates=19, calibrated=True)
     assert rnd.adjusted("a") == pytest.approx(1 / 20)
     assert rnd.adjusted("b") == pytest.approx(2 / 20)
@@ -171,14 +171,51 @@ def test_round_adjusts_by_the_replicates_smallest_p_values():
     ]
 
 
-def test_null_min_p_stops_once_the_decision_is_known(clean):
+@pytest.mark.parametrize("df", [1, 2, 3, 6])
+def test_chi2_logsf_beyond_the_underflow_matches_quadrature(df):
+    """log P(chi2 >= x) where scipy's logsf is -inf, against the upper incomplete gamma by
+    quadrature: Gamma(a, y) = e^-y y^(a-1) int_0^inf (1 + t/y)^(a-1) e^-t dt (rel 1e-9)."""
+    from scipy import integrate
+
+    from hosid.inference.gmm import chi2_logsf
+
+    for x in (1600.0, 5000.0):
+        a, y = df / 2, x / 2
+        quad = integrate.quad(lambda t, a=a, y=y: (1 + t / y) ** (a - 1) * np.exp(-t), 0, np.inf)[
+            0
+        ]
+        exact = -y + (a - 1) * np.log(y) + np.log(quad) - math.lgamma(a)
+        assert chi2_logsf(x, df) == pytest.approx(exact, rel=1e-9)
+    assert chi2_logsf(10.0, df) == pytest.approx(stats.chi2.logsf(10.0, df), rel=1e-12)
+
+
+def test_round_orders_p_values_that_underflow_by_their_logarithm():
+    """A narrow-band force's D of thousands underflows p to 0 on the record and on some
+    replicates of the white model: compared as p the ties counted against the record
+    (3/41 on a record with D = 4562); compared on log p the record is more extreme."""
+    from hosid.inference.gmm import j_difference
+
+    t_rec, t_rep = j_difference(4562.0, 0.0, df=2), j_difference(1500.0, 0.0, df=2)
+    assert t_rec["p_value"] == t_rep["p_value"] == 0.0
+    assert t_rec["log_p"] == pytest.approx(-4562.0 / 2)  # chi2(2): log sf = -D/2
+    assert j_difference(2000.0, 0.0, boundary=True)["log_p"] < -990
+    ev = {"nb": _ev("nb", 38.0, 0.0), "q": _ev("q", 1.0, 0.3)}
+    ev["nb"].log_p = t_rec["log_p"]
+    null = np.array([t_rep["log_p"], t_rep["log_p"] - 100.0] + [np.log(0.5)] * 38)  # R = 40
+    rnd = Round(Model.from_spec("paper"), ev, {}, 0.05, 5, null, replicates=40, calibrated=True)
+    assert rnd.adjusted("nb") == pytest.approx(1 / 41) and rnd.supported() == ["nb"]
+    ev["nb"].log_p = t_rep["log_p"] - 50.0  # between the two extreme replicates
+    assert rnd.adjusted("nb") == pytest.approx(2 / 41)
+
+
+def test_null_min_log_p_stops_once_the_decision_is_known(clean):
     model = Model.from_spec("paper")
     reps = [clean, clean, clean]
     start = np.tile(model.vector(estimate(clean, model).values), (3, 1))
-    full = null_min_p(reps, model, ["quadratic_stiffness", "excitation_mean"], start)
+    full = null_min_log_p(reps, model, ["quadratic_stiffness", "excitation_mean"], start)
     assert full.shape == (3,) and np.all(full == full[0])
-    stopped = null_min_p(
-        reps, model, ["quadratic_stiffness", "excitation_mean"], start, stop=(1.0, 0)
+    stopped = null_min_log_p(
+        reps, model, ["quadratic_stiffness", "excitation_mean"], start, stop=(0.0, 0)
     )
     assert stopped.shape == (1,)
 

@@ -114,7 +114,8 @@ class Evidence:
     """What the fit of ``model + effect`` says about the effect (module docstring).
 
     ``u``/``u_sd``: the regular coordinate and its adjusted sd; ``z``: their ratio;
-    ``D``/``p_value``: the calibrated quasi-likelihood ratio and its p-value;
+    ``D``/``p_value``: the calibrated quasi-likelihood ratio and its p-value, ``log_p``
+    its logarithm (exact where ``p_value`` underflows; from ``p_value`` when not given);
     ``estimate``: the extended model's parameters; ``hansen``: its over-identification
     test; ``dispersion``: the calibration's widening (1 when Hansen's test passes).
     """
@@ -134,6 +135,11 @@ class Evidence:
     J_null: float
     seconds: float
     weight: str = "the record's own blocks"  #: where the weight's covariance comes from
+    log_p: float | None = None
+
+    def __post_init__(self):
+        if self.log_p is None:
+            self.log_p = math.log(self.p_value) if self.p_value > 0 else -math.inf
 
     @property
     def param(self) -> str:
@@ -152,6 +158,7 @@ class Evidence:
             "z": self.z,
             "D": self.D,
             "p_value": self.p_value,
+            "log_p": self.log_p,
             "reference": self.reference,
             "value": self.estimate[self.param],
             "estimate": self.estimate,
@@ -298,6 +305,7 @@ def weigh(
         z=z,
         D=test["D"],
         p_value=test["p_value"],
+        log_p=test["log_p"],
         reference=test["reference"],
         estimate=ext.params(theta),
         sd=sd_theta,

@@ -8,7 +8,10 @@ coordinate and the quasi-likelihood ratio :math:`D_c` with its asymptotic p-valu
 1. **Calibration of the round** (Westfall & Young 1993, single step).  The same
    screening runs on :math:`R` records simulated from the current model (the
    posterior-predictive replicates of its gap, so that the null holds for every
-   candidate); each gives :math:`\min_c p_c^{(r)}`.  The adjusted p-value of candidate
+   candidate); each gives :math:`\min_c p_c^{(r)}`, compared on the logarithm
+   (:math:`p_c` of a narrow-band force underflows to 0 on the record and on replicates
+   of the white model fitted to it: a tie counted against the record had left such
+   records at :math:`p^*_c = 3/41`).  The adjusted p-value of candidate
    :math:`c` is
 
    .. math:: p^*_c = \frac{1 + \#\{r: \min_{c'} p_{c'}^{(r)} \le p_c\}}{R + 1},
@@ -61,7 +64,7 @@ from ..model.model import Model
 from ..record import Record
 from .evidence import COORDINATES, Evidence, critical_z, null_moments, screen
 
-__all__ = ["Round", "null_covariances", "null_min_p", "weigh_round"]
+__all__ = ["Round", "null_covariances", "null_min_log_p", "weigh_round"]
 
 
 @dataclass
@@ -73,7 +76,8 @@ class Round:
     failed: dict[str, str]
     alpha: float
     family: int  #: m, the number of candidates of the first round
-    null_min_p: np.ndarray = field(default_factory=lambda: np.empty(0))
+    #: :math:`\log\min_c p_c` of each screened replicate
+    null_min_log_p: np.ndarray = field(default_factory=lambda: np.empty(0))
     replicates: int = 0  #: R, the replicates available (more than screened when stopped)
     calibrated: bool = False
     seconds: float = 0.0
@@ -90,17 +94,17 @@ class Round:
         r"""The calibrated p-value :math:`p^*_c` (Bonferroni's :math:`m p_c` when the
         round is not calibrated).
         """
-        p = self.evidence[effect].p_value
+        ev = self.evidence[effect]
         if not self.calibrated:
-            return min(1.0, self.family * p)
-        return float((1 + np.sum(self.null_min_p <= p)) / (self.replicates + 1))
+            return min(1.0, self.family * ev.p_value)
+        return float((1 + np.sum(self.null_min_log_p <= ev.log_p)) / (self.replicates + 1))
 
     @property
     def stopped(self) -> bool:
         """The calibration stopped early: its p-values are lower bounds (all above
         ``alpha``).
         """
-        return self.calibrated and self.null_min_p.size < self.replicates
+        return self.calibrated and self.null_min_log_p.size < self.replicates
 
     def wald_ok(self, effect: str) -> bool:
         r"""The calibrated posterior excludes the null at :attr:`wald_level`."""
@@ -111,13 +115,13 @@ class Round:
     def supported(self) -> list[str]:
         """Candidates that pass steps 1 and 2, smallest :math:`p_c` first."""
         ok = [c for c in self.evidence if self.adjusted(c) <= self.alpha and self.wald_ok(c)]
-        return sorted(ok, key=lambda c: (self.evidence[c].p_value, -self.evidence[c].D))
+        return sorted(ok, key=lambda c: (self.evidence[c].log_p, -self.evidence[c].D))
 
     def best(self) -> str | None:
         """The candidate with the smallest :math:`p_c` (supported or not)."""
         if not self.evidence:
             return None
-        return min(self.evidence, key=lambda c: (self.evidence[c].p_value, -self.evidence[c].D))
+        return min(self.evidence, key=lambda c: (self.evidence[c].log_p, -self.evidence[c].D))
 
     def numbers(self) -> dict[str, list[float]]:
         """Every candidate's three numbers and its calibrated p-value:
@@ -128,7 +132,7 @@ class Round:
     def as_dict(self) -> dict[str, Any]:
         """Plain numbers for reports: every candidate's evidence and calibration."""
         rows = []
-        for c, ev in sorted(self.evidence.items(), key=lambda kv: kv[1].p_value):
+        for c, ev in sorted(self.evidence.items(), key=lambda kv: kv[1].log_p):
             rows.append(
                 {
                     **ev.as_dict(),
@@ -145,9 +149,9 @@ class Round:
             "wald_level": self.wald_level,
             "calibrated": self.calibrated,
             "calibration_replicates": int(self.replicates),
-            "calibration_screened": int(self.null_min_p.size),
+            "calibration_screened": int(self.null_min_log_p.size),
             "calibration_stopped": self.stopped,
-            "null_min_p": self.null_min_p.tolist(),
+            "null_min_log_p": self.null_min_log_p.tolist(),
             "candidates": rows,
             "vetoed": dict(self.vetoed),
             "seconds": self.seconds,
@@ -191,7 +195,7 @@ def null_covariances(
     return out
 
 
-def null_min_p(
+def null_min_log_p(
     replicates: Sequence[Record],
     model: Model,
     candidates: Sequence[str],
@@ -200,11 +204,12 @@ def null_min_p(
     stop: tuple[float, int] | None = None,
     covariances: Mapping[str, BlockCovariance] | None = None,
 ) -> np.ndarray:
-    r""":math:`\min_c p_c` of the screening of each replicate record (module docstring);
+    r""":math:`\log\min_c p_c` of the screening of each replicate record (module docstring);
     replicates the model cannot be estimated on are left out.  ``starts`` (``(R, p)``,
     the parameters each replicate was simulated at) replace the replicate's own estimate
-    as the screening's start.  ``stop = (p, K)`` ends the loop as soon as more than
-    ``K`` replicates reach :math:`\min_c p_c \le p` (the decision is then known).
+    as the screening's start.  ``stop = (log_p, K)`` ends the loop as soon as more
+    than ``K`` replicates reach :math:`\log\min_c p_c \le` ``log_p`` (the decision is
+    then known).
     ``covariances``: the weights the record was screened with (:func:`weigh_round`).
     """
     out = []
@@ -219,7 +224,7 @@ def null_min_p(
         except HosidInputError:
             continue
         if found:
-            out.append(min(ev.p_value for ev in found.values()))
+            out.append(min(ev.log_p for ev in found.values()))
         if stop is not None and np.sum(np.array(out) <= stop[0]) > stop[1]:
             break
     return np.array(out, dtype=float)
@@ -237,21 +242,21 @@ def weigh_round(
     starts: np.ndarray | None = None,
 ) -> Round:
     r"""Screen the candidates on the record and, when one reaches :math:`p_c \le \alpha`,
-    on the replicates (module docstring; ``starts`` as in :func:`null_min_p`).
+    on the replicates (module docstring; ``starts`` as in :func:`null_min_log_p`).
     """
     t0 = time.perf_counter()
     covs = null_covariances(replicates, model, candidates, start) if replicates else {}
     found, failed = screen(record, model, candidates, start=start, covariances=covs)
     rnd = Round(model, found, failed, float(alpha), int(family))
-    best = min((ev.p_value for ev in found.values()), default=1.0)
-    if found and replicates and best <= alpha:
+    best = min((ev.log_p for ev in found.values()), default=0.0)
+    if found and replicates and best <= math.log(alpha):
         R = len(replicates)
         # the best candidate is supported only if at most K replicates are as extreme
         K = math.floor(alpha * (R + 1) - 1 + 1e-9)
-        rnd.null_min_p = null_min_p(
+        rnd.null_min_log_p = null_min_log_p(
             replicates, model, list(found), starts, stop=(best, K), covariances=covs
         )
         rnd.replicates = R
-        rnd.calibrated = rnd.null_min_p.size > 0
+        rnd.calibrated = rnd.null_min_log_p.size > 0
     rnd.seconds = time.perf_counter() - t0
     return rnd

@@ -177,13 +177,13 @@ def evidence_figure(diag: Diagnosis) -> Figure:
     fig = Figure(figsize=(9.0, 2.3 * n + 0.6), layout="constrained")
     axes = np.atleast_2d(fig.subplots(n, 2, squeeze=False))
     for k, rnd in enumerate(rounds):
-        names = sorted(rnd.evidence, key=lambda c: rnd.evidence[c].p_value)
+        names = sorted(rnd.evidence, key=lambda c: rnd.evidence[c].log_p)
         y = np.arange(len(names))[::-1]
         chosen = diag.steps[k].effect if k < len(diag.steps) else None
         colors = [_NAMED if c == chosen else _OTHER for c in names]
         z = [abs(rnd.evidence[c].z) for c in names]
         lp = [-math.log10(max(rnd.adjusted(c), 1e-300)) for c in names]
-        lp_raw = [-math.log10(max(rnd.evidence[c].p_value, 1e-300)) for c in names]
+        lp_raw = [-rnd.evidence[c].log_p / math.log(10) for c in names]
         ax_z, ax_p = axes[k]
         ax_z.barh(y, z, color=colors)
         for c, yy in zip(names, y, strict=True):
