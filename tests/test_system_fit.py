@@ -235,6 +235,27 @@ def test_fit_of_a_two_dof_chain(chain_file):
     assert first > summary["modes_small_amplitude"][0]["frequency_hz"]["q95"]
 
 
+def test_a_systems_blocks_are_six_per_equation(chain_file, paper_record):
+    """The equations counted from the system are the components' (the prepared
+    quasi-likelihood's k); a two-dof chain's record gets at least 6 blocks an equation
+    where 4 periods allow it, the single oscillator keeps its 97 blocks of 20.48 s."""
+    from hosid.inference.system_estimate import (
+        BLOCKS_PER_EQUATION,
+        equation_count,
+        estimate_system,
+        system_state,
+    )
+
+    system = System.from_toml(chain_file)
+    rec = simulate_chain(system, duration=1500.0, dt=DT, rng=np.random.default_rng(3))
+    est = estimate_system(rec, system)
+    assert est.ql.k == equation_count(system)
+    assert est.ql.B >= BLOCKS_PER_EQUATION * est.ql.k
+    assert system_state(rec, system).layout == est.state.layout
+    single = System.single(Model.from_spec("paper"))
+    assert estimate_system(paper_record, single).ql.B == 97
+
+
 def test_fit_settings_and_their_errors(chain_file, paper_record):
     system = System.from_toml(chain_file)
     rec = simulate_chain(system, duration=400.0, dt=DT, rng=np.random.default_rng(8))

@@ -140,9 +140,12 @@ class ChainState:
         block_seconds: float | None = None,
         window: str = "hann",
         centred: bool = True,
+        target_blocks: int | None = None,
     ) -> ChainState:
         """The state of ``record`` (its channels in order, each a displacement or an
-        acceleration: :attr:`hosid.record.Record.measured`).
+        acceleration: :attr:`hosid.record.Record.measured`); a record of several channels
+        is cut into at least ``target_blocks`` blocks where the block length allows
+        (:func:`hosid.spectra.blocks.choose_layout`).
 
         Raises
         ------
@@ -186,6 +189,7 @@ class ChainState:
             omega_n,
             block_seconds=block_seconds,
             bounds=distinct,
+            target_blocks=target_blocks,
         )
         if margin:  # the blocks where the trimmed segments start (not at sample 0)
             starts = [a_ + k * layout.M for a_, b in distinct for k in range((b - a_) // layout.M)]

@@ -17,8 +17,9 @@ estimates the two-sided spectral density.
 and at least :data:`BINS_PER_BANDWIDTH` Fourier bins across the resonance's equivalent
 bandwidth :math:`\Delta\omega` (:math:`T \ge 4\cdot2\pi/\Delta\omega`: a lightly
 damped resonance needs blocks several decay times long), rounded to a power of two,
-shortened to keep at least :data:`MIN_BLOCKS` blocks but never below
-:data:`MIN_PERIODS` periods.
+shortened to keep at least :data:`MIN_BLOCKS` blocks (or the ``target_blocks`` a
+caller asks for: a system's many equations, :mod:`hosid.inference.system_estimate`) but
+never below :data:`MIN_PERIODS` periods.
 
 A segment that repeats itself (the steady-state response to a periodic input holding
 more than one period, or one period of an *odd* multisine, :math:`u(t + P/2) = -u(t)`,
@@ -138,6 +139,7 @@ def choose_layout(
     min_blocks: int = MIN_BLOCKS,
     bounds: Sequence[tuple[int, int]] | None = None,
     bandwidth: float | None = None,
+    target_blocks: int | None = None,
 ) -> BlockLayout:
     """The block layout of a record of ``n`` samples (module docstring).
 
@@ -153,6 +155,9 @@ def choose_layout(
         The record's segments (:attr:`hosid.record.Record.bounds`); default one.
     bandwidth : float, optional
         The resonance's equivalent bandwidth (rad/s), if known.
+    target_blocks : int, optional
+        Shorten the default blocks (by halves, never below :data:`MIN_PERIODS` periods)
+        until the record holds this many.
 
     Raises
     ------
@@ -182,6 +187,12 @@ def choose_layout(
         target = max(target, BINS_PER_BANDWIDTH * 2.0 * math.pi / bandwidth)
     M = 2 ** round(math.log2(max(target / dt, 16.0)))
     while blocks_in(bounds, M, dt).B < min_blocks and M > 16:
+        M //= 2
+    while (
+        target_blocks is not None
+        and blocks_in(bounds, M, dt).B < target_blocks
+        and M // 2 * dt >= MIN_PERIODS * period
+    ):
         M //= 2
     layout = blocks_in(bounds, M, dt)
     if M * dt < MIN_PERIODS * period or layout.B < min_blocks:
