@@ -216,7 +216,7 @@ def markdown(summaries: Sequence[dict], ideff: dict, argv: str, seed: int = SEED
             f"{np.min(effs):.2f}. Coverage pooled over coefficients and records: 90 % "
             f"{c90:.2f}, 50 % {c50:.2f} (all parameters: {a90:.2f}, {a50:.2f}). Converged "
             f"(R-hat < 1.01, ESS >= 400): {sm['converged']}/{n}. Seconds a fit: mean "
-            f"{np.mean(sm['seconds']):.0f} (2 workers on 2 cores, shared).",
+            f"{np.mean(sm['seconds']):.0f} (the batch engine on 2 cores, shared with other work).",
             "",
             "| parameter | truth | mean | bias / bound sd | rmse | post sd | bound sd | "
             "efficiency | ident. | 90 % | 50 % | max R-hat | min ESS |",
