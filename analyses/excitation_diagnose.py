@@ -4,8 +4,9 @@ force, and does it name nothing on white records?
 The records are those of the excitation studies (``excitation_study.py``,
 ``impulse_study.py``: the independent simulator, the paper oscillator at S0 = 100 over
 2000 s and the ship-roll-like one over 4000 s) at the strengths the issue uses: the
-filter peaked above the resonance (7 rad/s, zf 0.2) and at twice it (13, 0.3) on the
-paper oscillator, below the ship's resonance (0.45, 0.1); Poisson impulses at 0.5, 1
+filter peaked above the resonance (7 rad/s, zf 0.2), at it (5, 0.2) and at twice it
+(13, 0.3) on the paper oscillator, below the ship's resonance (0.45, 0.1) and at it
+(0.6, 0.1); Poisson impulses at 0.5, 1
 and 2 a second on the paper oscillator; and white records of both systems.  Each is
 diagnosed with base ``paper`` (every candidate of the white model, the new
 ``narrowband_excitation`` and ``impulsive_excitation`` among them) exactly as
@@ -43,6 +44,8 @@ CELLS = {
     "narrowband_above@paper": ("paper", "narrowband_excitation", {"wf": 7.0, "zf": 0.2}, 10),
     "narrowband_twice@paper": ("paper", "narrowband_excitation", {"wf": 13.0, "zf": 0.3}, 10),
     "narrowband_below@ship": ("ship", "narrowband_excitation", {"wf": 0.45, "zf": 0.1}, 10),
+    "narrowband_at@ship": ("ship", "narrowband_excitation", {"wf": 0.6, "zf": 0.1}, 10),
+    "narrowband_at@paper": ("paper", "narrowband_excitation", {"wf": 5.0, "zf": 0.2}, 10),
     "impulses_0.5@paper": ("paper", "impulsive_excitation", {"rate": 0.5}, 10),
     "impulses_1@paper": ("paper", "impulsive_excitation", {"rate": 1.0}, 10),
     "impulses_2@paper": ("paper", "impulsive_excitation", {"rate": 2.0}, 10),
