@@ -42,9 +42,7 @@ def test_short_record_halves_the_blocks_to_keep_24():
 def test_target_blocks_halve_the_blocks_down_to_four_periods():
     # a system's many equations ask for more blocks: 150 -> 512 samples (195 blocks); 1000
     # -> 256 samples (5.12 s, 5.1 periods of 6.3 rad/s), as 128 would hold 2.6 periods
-    assert choose_layout(100_000, DT, OMEGA_PAPER, target_blocks=150) == BlockLayout(
-        512, 195, DT
-    )
+    assert choose_layout(100_000, DT, OMEGA_PAPER, target_blocks=150) == BlockLayout(512, 195, DT)
     assert choose_layout(100_000, DT, OMEGA_PAPER, target_blocks=1000).M == 256
     assert choose_layout(100_000, DT, OMEGA_PAPER, target_blocks=97).M == 1024
 
