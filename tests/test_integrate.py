@@ -28,7 +28,12 @@ import pytest
 from hosid.errors import HosidInputError
 from hosid.model.chain import simulate_chain
 from hosid.model.system import System
-from hosid.spectra.integrate import BAND_RISE, acceleration_band, integrate_acceleration
+from hosid.spectra.integrate import (
+    BAND_RISE,
+    acceleration_band,
+    integrate_acceleration,
+    integrate_in_time,
+)
 
 DT = 0.02
 A1, A2, S0 = 1.0, 25.0, 10.0
@@ -195,3 +200,27 @@ def test_errors(a, kwargs, message):
     with pytest.raises(HosidInputError) as err:
         integrate_acceleration(a, DT, **kwargs)
     assert str(err.value) == message
+
+
+def test_in_time_the_trapezoid_gain_is_corrected():
+    """Interval averages of tones integrated in time (:func:`integrate_in_time`): the
+    velocity at the half steps is exact and the displacement within the residual gain
+    :math:`u^4/45` (:math:`u = \\omega\\Delta t/2`) of the exact one, in the record's middle;
+    the uncorrected trapezoid sum is short by :math:`u^2/3` (0.16 % at 7 rad/s).
+    """
+    n = 20000
+    ks = np.array([445, 1114])  # 7.0 and 17.5 rad/s
+    amps, phases = np.array([1.0, 0.1]), np.array([0.4, -1.0])
+    w, _, _, _, box = _tones(n, ks, amps, phases)
+    x, v, _ = integrate_in_time(box, DT, omega_low=0.5)
+    half = DT * np.arange(n) + DT / 2
+    arg = np.outer(half, w) + phases
+    x_true, v_true = np.cos(arg) @ amps, -np.sin(arg) @ (amps * w)
+    mid = slice(5000, n - 5000)
+    u = w * DT / 2
+    tol = np.sum(amps * u**4 / 45) + 1e-6
+    # measured 2.8e-6: the residual gain 2.6e-6 and the filter
+    assert np.max(np.abs(x[mid] - x_true[mid])) < tol
+    assert np.max(np.abs(v[mid] - v_true[mid])) < 1e-6 * np.abs(v_true).max()
+    trapezoid = x + DT**2 / 12 * (np.cos(arg) @ (-amps * w**2))  # the gain uncorrected
+    assert np.max(np.abs(trapezoid[mid] - x_true[mid])) > 0.5 * amps[0] * u[0] ** 2 / 3

@@ -326,11 +326,19 @@ def integrate_in_time(
     (module docstring), the running sum :math:`\Delta t\sum_{k\le n}\bar a_k` is the
     velocity at the half steps exactly, up to a constant, and the trapezoid sum of those
     velocities the displacement there, up to a line (and the trapezoid rule's random walk,
-    of spectrum :math:`S_0\Delta t^2/12\omega^2`).  Both are high-passed by a fourth-order
-    Butterworth filter at ``omega_low`` run forwards and backwards (zero phase, gain
-    :math:`(\omega/\omega_L)^8/(1 + (\omega/\omega_L)^8)`, polynomial trends of degree 3
-    removed), whose transients decay within a few :math:`1/\omega_L` of a segment's ends;
-    the acceleration is the filtered velocity's spectral derivative
+    of spectrum :math:`S_0\Delta t^2/12\omega^2`) and the trapezoid rule's gain: on the
+    sampled velocity the sum's transfer function is :math:`\Delta t/(2i\tan u)`,
+    :math:`u = \omega\Delta t/2`, against the integral's :math:`1/(i\omega)`, a gain
+    :math:`u/\tan u \approx 1 - u^2/3`.  Subtracting :math:`\Delta t^2/12` times the
+    acceleration (the Euler-Maclaurin correction of the trapezoid rule) leaves
+    :math:`u/\tan u + u^2/3 = 1 - u^4/45 - \dots`: at 7 rad/s and :math:`\Delta t` =
+    0.02 s the displacement's variance was 0.33 % short before, :math:`10^{-6}` after
+    (uncorrected, the cubic spring between the masses of the 2-dof chain came out 2.6
+    bound-sd high on 12 records from accelerations; corrected, 0.8).  Both are high-passed
+    by a fourth-order Butterworth filter at ``omega_low`` run forwards and backwards (zero
+    phase, gain :math:`(\omega/\omega_L)^8/(1 + (\omega/\omega_L)^8)`, polynomial trends
+    of degree 3 removed), whose transients decay within a few :math:`1/\omega_L` of a
+    segment's ends; the acceleration is the filtered velocity's spectral derivative
     (:func:`hosid.spectra.derivatives.derivatives`).  Unlike the Fourier integration of
     :func:`integrate_acceleration`, nothing here takes the segment to be periodic: a sharp
     edge there spreads the periodic extension's kink over the whole segment.  Each
@@ -351,4 +359,5 @@ def integrate_in_time(
         v[s:b] = signal.sosfiltfilt(sos, vel, padlen=pad)
         x[s:b] = signal.sosfiltfilt(sos, disp - disp.mean(), padlen=pad)
         acc[s:b] = derivatives(v[s:b], dt)[0]
+        x[s:b] -= dt**2 / 12.0 * acc[s:b]  # the trapezoid rule's gain (docstring)
     return x, v, acc

@@ -123,10 +123,14 @@ def _smooth(P: np.ndarray, width: int) -> np.ndarray:
 
 def _edge(w, Sa, level, start) -> tuple[float, float] | None:
     """Bracket of the first sustained drop of ``Sa`` below ``level / EDGE_DROP``, if it
-    is a cliff (:data:`EDGE_CLIFF`).
+    is a cliff (:data:`EDGE_CLIFF`) and starts below 0.9 times the highest frequency
+    (above it the cliff's far side is past the Nyquist frequency: a spectrum hovering at
+    a tenth of the level, as a multi-dof channel's above its higher modes, ended in 3
+    bins below it near the Nyquist frequency and was taken for an edge there).
     """
     low = Sa < level / EDGE_DROP
-    for k in np.flatnonzero(low & (w > start)):
+    top = 0.9 * w[-1]  # nearer the Nyquist frequency no cliff can be seen
+    for k in np.flatnonzero(low & (w > start) & (w <= top)):
         if low[k:].mean() >= 0.9 and low[k:].size >= 3:
             above = np.flatnonzero((Sa[:k] >= 0.5 * level) & (w[:k] > start))
             lo = w[above[-1]] if above.size else w[max(k - 1, 0)]
