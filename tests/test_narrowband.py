@@ -4,6 +4,7 @@ record, the identities of the augmented state, the simulator and the estimate.
 
 import importlib
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -360,3 +361,29 @@ def test_refined_pilots_only_where_no_coarse_solution_passes(passes, monkeypatch
     rec = simulate(truth, duration=600.0, dt=0.02, rng=np.random.default_rng(2))
     est_mod.estimate(rec, NB, settle=False)
     assert calls == ([False] if passes else [False, True])
+
+
+def test_coincident_resonances_study_tiny(tmp_path):
+    """``analyses/coincident_resonances.py`` on 2 short records (its numbers: 24 records,
+    ``results/coincident_resonances.md``): a z-score per parameter, the symmetric
+    functions of the two squared frequencies beside the pair, the table written.
+    """
+    import sys
+
+    analyses = Path(__file__).resolve().parents[1] / "analyses"
+    sys.path.insert(0, str(analyses))
+    try:
+        cr = importlib.import_module("coincident_resonances")
+        out = tmp_path / "cr.md"
+        cr.main(["--records", "2", "--duration", "2000", "--workers", "1", "--out", str(out)])
+    finally:
+        sys.path.remove(str(analyses))
+        for name in ("coincident_resonances", "excitation_study", "independent_sim"):
+            sys.modules.pop(name, None)
+    text = out.read_text()
+    for row in ("| a1 |", "| wf |", "| zf |", "| s = a2 + wf^2 |", "| p = a2 wf^2 |"):
+        assert row in text
+    cells = [
+        c.strip() for line in text.splitlines() if line.startswith("| ") for c in line.split("|")
+    ]
+    assert not any(c.lstrip("+-") == "nan" for c in cells)
