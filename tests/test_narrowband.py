@@ -285,8 +285,9 @@ def test_the_white_limit_is_the_restricted_minimum_of_the_filter_s_own_J():
     estimate moved to the boundary unrefitted.  A model without a filter has nothing to
     test.
     """
-    from hosid.inference.estimate import log_params, typical_scale
+    from hosid.inference.estimate import log_params
     from hosid.inference.settle import white_limit
+    from hosid.inference.solutions import typical_scale
 
     truth = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
     rec = simulate(truth, duration=500.0, dt=0.02, rng=np.random.default_rng(8))

@@ -25,8 +25,9 @@ from hosid.components.chain_identities import ChainIdentities, combine, rows
 from hosid.components.chain_spectral import ChainJ2, ChainLevel
 from hosid.errors import HosidInputError
 from hosid.inference import FitOptions
-from hosid.inference.estimate import _solve_rounds, components_for, estimate, log_params
+from hosid.inference.estimate import components_for, estimate, log_params
 from hosid.inference.pilot import pilot
+from hosid.inference.solutions import solve_rounds
 from hosid.model.chain import simulate_chain
 from hosid.model.linear_chain import stationary_covariance
 from hosid.model.model import Model
@@ -102,7 +103,7 @@ def test_single_oscillator_default_estimate_is_the_one_element_chains(paper_reco
     support = model.default_priors(state.scales, constrained=False)
     lo = np.array([support[n].lower for n in model.param_names])
     hi = np.array([support[n].upper for n in model.param_names])
-    own, _ = _solve_rounds(state, model, components_for(), theta0, 2, log_params(model), lo, hi)
+    own, _ = solve_rounds(state, model, components_for(), theta0, 2, log_params(model), lo, hi)
     routed = estimate(paper_record, "paper")  # the one-element chain's equations
     as_system = estimate(paper_record, System.single("paper"))
     np.testing.assert_allclose(routed.theta, own, rtol=1e-12)

@@ -82,7 +82,7 @@ import numpy as np
 
 from ..errors import HosidInputError
 from ..inference.calibrate import HANSEN_P
-from ..inference.estimate import estimate, log_params, typical_scale
+from ..inference.estimate import estimate, log_params
 from ..inference.gmm import (
     BlockCovariance,
     Transformed,
@@ -91,6 +91,7 @@ from ..inference.gmm import (
     quasi_likelihood,
     solve,
 )
+from ..inference.solutions import typical_scale
 from ..model.coordinates import COORDINATES, WHITE_CORNER, Coordinate, critical_z, param_sd
 from ..model.excitation import Spectrum
 from ..model.model import Model, get_term

@@ -198,7 +198,7 @@ def unbiased(state, model, components, theta, ql, n, progress):
             b.close()
     corrected = moved(theta, -beta, positive)
     first = shifted(ql, beta, positive, n)
-    from .estimate import typical_scale
+    from .solutions import typical_scale
 
     cov = first.laplace(corrected, typical_scale(model, state, corrected))
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0)) / np.where(positive, np.abs(corrected), 1.0)

@@ -66,12 +66,20 @@ from ..state import RecordState
 from ..verdicts import Check
 from .chain_pilot import chain_pilot
 from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, unbiased
-from .gmm import QuasiLikelihood, hansen, quasi_likelihood, solve
+from .gmm import QuasiLikelihood, hansen
 from .maps import likelihood_map
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
 from .settle import settled_note, settled_term, white_limit
-from .solutions import acceptable, alternatives, select_solution, solved
+from .solutions import (
+    acceptable,
+    alternatives,
+    bounds,
+    select_solution,
+    solve_rounds,
+    solved,
+    typical_scale,
+)
 
 __all__ = [
     "COSTS",
@@ -225,18 +233,6 @@ def log_params(model: Model, priors: PriorSet | None = None) -> list[int]:
     return [i for i, n in enumerate(names) if n in ("S0", "wc", "wf", "zf")]
 
 
-def typical_scale(model: Model | System, state, theta: np.ndarray) -> np.ndarray:
-    """A typical size of each parameter (finite differences, solver scaling)."""
-    if isinstance(model, System):
-        from ..components.chain_features import system_scales
-
-        priors = model.default_priors(system_scales(state, model), constrained=False)
-    else:
-        priors = model.default_priors(state.scales, constrained=False)
-    width = np.array([priors[n].upper - priors[n].lower for n in model.param_names])
-    return np.maximum(np.abs(theta), 1e-3 * np.where(np.isfinite(width), width, 1.0))
-
-
 def estimate(
     record: Record | RecordState,
     model: Model | System | str = "paper",
@@ -296,32 +292,17 @@ def estimate(
     settle = settle and start is None
     model, notes = excitation_for(state, model, band_limit=settle)
     asked = components
-    components = list(components or components_for())
-    if any(model.has(p) for p in TAIL_PARAMS) and not any(isinstance(c, Tail) for c in components):
-        components.append(Tail())  # the corner and the noise floor show in the tail
+    components, chain = _components(state, model, components)
     whitening = Spectrum(model).whitening
-    kurtosis = model.has("wf") or model.has("rate")  # a filter and its oscillator may swap;
-    if kurtosis and not any(isinstance(c, ForceKurtosis) for c in components):
-        components.append(ForceKurtosis())  # the impulses' rate shows in the kurtosis
-    chain = one_element(state, model, components)  # the default: the one-element chain's
-    components = chain or components
-    if start is not None:
-        starts = [np.array(start, dtype=float)]
-    elif whitening:  # the filter and the oscillator may swap: try each
-        starts = whitened_pilots(state, model, initial_theta(state, model))
-    elif chain:
-        starts = [chain_pilot(ChainState.of(state), System.single(model))]
-    else:
-        starts = [pilot_estimate(state, model)]
     logs = log_params(model)
     lower, upper = bounds(
         model, support, lambda: model.default_priors(state.scales, constrained=False)
     )
 
     def one(theta0):  # another start may do where one fails (a white filter is degenerate)
-        return _solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
+        return solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
 
-    found, failure = solved(starts, one)
+    found, failure = solved(_starts(state, model, start, whitening, chain), one)
     df = hansen(found[0][1], found[0][0])["df"] if found else 0
     if whitening and start is None and found and not acceptable(found, df):
         more = whitened_pilots(state, model, initial_theta(state, model), refine=True)
@@ -355,12 +336,7 @@ def estimate(
             "the estimate is corrected for the impulses' sampling bias (indirect inference: "
             f"{DEFAULT_ITERATIONS} x {simulations} records simulated near the estimate)"
         )
-    cov = ql.laplace(theta, typical_scale(model, state, theta))
-    # a parameter the equations barely see (e.g. at a bound of its support) gets no more
-    # spread than a quarter of its prior's width
-    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
-    cap = np.where(np.isfinite(upper - lower), 0.25 * (upper - lower), np.inf)
-    cov = cov * np.outer(*(2 * [np.minimum(1.0, cap / sd)]))
+    cov = _capped(ql.laplace(theta, typical_scale(model, state, theta)), upper - lower)
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
     others = alternatives(ql, theta, solutions, cov, J_best)
@@ -370,30 +346,42 @@ def estimate(
     )  # fmt: skip
 
 
-def bounds(model, support, default) -> tuple[np.ndarray, np.ndarray]:
-    """The lower and upper ends of the search: ``support``'s when it names ``model``'s
-    parameters, else those of ``default()`` (the default priors).
+def _components(state, model: Model, components) -> tuple[list[Component], bool]:
+    """The equations the estimate solves: ``components`` (default: :func:`components_for`)
+    with the tail's where the model has a corner or a noise floor, the force's kurtosis
+    where it has a shaping filter (its oscillator may swap with it) or impulses (their
+    rate shows there), written as the one-element chain's where they are the default
+    ones (:func:`hosid.components.one_element.one_element`); and whether they are.
     """
-    if support is None or list(support.names) != list(model.param_names):
-        support = default()
-    lower = np.array([support[n].lower for n in model.param_names], dtype=float)
-    upper = np.array([support[n].upper for n in model.param_names], dtype=float)
-    return lower, upper
+    components = list(components or components_for())
+    if any(model.has(p) for p in TAIL_PARAMS) and not any(isinstance(c, Tail) for c in components):
+        components.append(Tail())
+    if (model.has("wf") or model.has("rate")) and not any(
+        isinstance(c, ForceKurtosis) for c in components
+    ):
+        components.append(ForceKurtosis())
+    chain = one_element(state, model, components)
+    return (chain or components), bool(chain)
 
 
-def _solve_rounds(state, model, components, theta, rounds, logs, lower, upper):
-    """``rounds`` of (prepare the equations at ``theta``, solve): the estimate and its
-    quasi-likelihood.
+def _starts(state, model: Model, start, whitening: bool, chain: bool) -> list[np.ndarray]:
+    """Where the search starts: ``start`` if given; under a shaping filter a pilot for
+    each way the filter and the oscillator may share the resonances; the one-element
+    chain's pilot; else the closed-form pilot.
     """
-    for _ in range(rounds):
-        try:
-            moments = [c.prepare(state, model, theta) for c in components]
-            ql = quasi_likelihood(moments, n_params=len(theta))
-        except ValueError as exc:
-            raise HosidInputError(str(exc)) from None
-        scale = typical_scale(model, state, theta)
-        new = solve(ql, theta, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
-        if not np.all(np.isfinite(new)):
-            raise HosidInputError("the estimating equations have no finite solution")
-        theta = new
-    return theta, ql
+    if start is not None:
+        return [np.array(start, dtype=float)]
+    if whitening:
+        return whitened_pilots(state, model, initial_theta(state, model))
+    if chain:
+        return [chain_pilot(ChainState.of(state), System.single(model))]
+    return [pilot_estimate(state, model)]
+
+
+def _capped(cov: np.ndarray, width: np.ndarray) -> np.ndarray:
+    """``cov`` with no parameter's sd above a quarter of its support's ``width``: one the
+    equations barely see (e.g. at a bound of its support) gets no more spread than that.
+    """
+    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    cap = np.where(np.isfinite(width), 0.25 * width, np.inf)
+    return cov * np.outer(*(2 * [np.minimum(1.0, cap / sd)]))

@@ -1,4 +1,8 @@
-r"""The choice among the solutions of the estimating equations from several starts.
+r"""The solutions of the estimating equations: the search, and the choice among starts.
+
+:func:`solve_rounds` solves from one start within the search's :func:`bounds`, in
+rounds of (prepare the equations at the current vector, solve), at each parameter's
+:func:`typical_scale`.
 
 A model whose force goes through a shaping filter is solved from several pilots
 (:func:`hosid.inference.pilot.whitened_pilots`: the filter and the oscillator may swap).
@@ -16,9 +20,18 @@ import numpy as np
 from scipy import stats
 
 from ..errors import HosidInputError
-from .gmm import HANSEN_P, QuasiLikelihood
+from ..model.system import System
+from .gmm import HANSEN_P, QuasiLikelihood, quasi_likelihood, solve
 
-__all__ = ["acceptable", "alternatives", "select_solution", "solved"]
+__all__ = [
+    "acceptable",
+    "alternatives",
+    "bounds",
+    "select_solution",
+    "solve_rounds",
+    "solved",
+    "typical_scale",
+]
 
 
 def solved(starts, solve_one) -> tuple[list, HosidInputError | None]:
@@ -106,3 +119,44 @@ def alternatives(ql, theta, solutions, cov, J_best, gap: float = 9.21) -> list[n
             if all(float((th - o) @ prec @ (th - o)) > 9.0 * th.size for o in out):
                 out.append(th)
     return out
+
+
+def typical_scale(model, state, theta: np.ndarray) -> np.ndarray:
+    """A typical size of each parameter (finite differences, solver scaling)."""
+    if isinstance(model, System):
+        from ..components.chain_features import system_scales
+
+        priors = model.default_priors(system_scales(state, model), constrained=False)
+    else:
+        priors = model.default_priors(state.scales, constrained=False)
+    width = np.array([priors[n].upper - priors[n].lower for n in model.param_names])
+    return np.maximum(np.abs(theta), 1e-3 * np.where(np.isfinite(width), width, 1.0))
+
+
+def bounds(model, support, default) -> tuple[np.ndarray, np.ndarray]:
+    """The lower and upper ends of the search: ``support``'s when it names ``model``'s
+    parameters, else those of ``default()`` (the default priors).
+    """
+    if support is None or list(support.names) != list(model.param_names):
+        support = default()
+    lower = np.array([support[n].lower for n in model.param_names], dtype=float)
+    upper = np.array([support[n].upper for n in model.param_names], dtype=float)
+    return lower, upper
+
+
+def solve_rounds(state, model, components, theta, rounds, logs, lower, upper):
+    """``rounds`` of (prepare the equations at ``theta``, solve): the estimate and its
+    quasi-likelihood.
+    """
+    for _ in range(rounds):
+        try:
+            moments = [c.prepare(state, model, theta) for c in components]
+            ql = quasi_likelihood(moments, n_params=len(theta))
+        except ValueError as exc:
+            raise HosidInputError(str(exc)) from None
+        scale = typical_scale(model, state, theta)
+        new = solve(ql, theta, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
+        if not np.all(np.isfinite(new)):
+            raise HosidInputError("the estimating equations have no finite solution")
+        theta = new
+    return theta, ql

@@ -8,7 +8,7 @@ The same steps as a single oscillator's estimate (:mod:`hosid.inference.estimate
    (:func:`hosid.screen.check_record`); their state is prepared once
    (:class:`hosid.chain_state.ChainState`: acceleration channels integrated in their band);
 2. a closed-form pilot (:mod:`hosid.inference.chain_pilot`);
-3. the same rounds of efficient GMM (:func:`hosid.inference.estimate._solve_rounds`,
+3. the same rounds of efficient GMM (:func:`hosid.inference.solutions.solve_rounds`,
    :mod:`hosid.inference.gmm`) on the system's components, prepared at the current
    estimate, within the default priors' supports; the same Laplace covariance, cap and
    Hansen test.
@@ -54,9 +54,9 @@ from ..model.system import System
 from ..record import Record
 from ..screen import check_record, reject_failures
 from .chain_pilot import chain_pilot
-from .estimate import Estimate, _solve_rounds, bounds, typical_scale
+from .estimate import Estimate
 from .gmm import hansen
-from .solutions import alternatives
+from .solutions import alternatives, bounds, solve_rounds, typical_scale
 
 __all__ = [
     "BLOCKS_PER_EQUATION",
@@ -170,7 +170,7 @@ def estimate_system(
         lambda: system.default_priors(system_scales(state, system), constrained=False),
     )
     logs = system.log_params
-    theta, ql = _solve_rounds(state, system, components, theta0, rounds, logs, lower, upper)
+    theta, ql = solve_rounds(state, system, components, theta0, rounds, logs, lower, upper)
     J_best = float(-2.0 * ql(theta))
     cov = ql.laplace(theta, typical_scale(system, state, theta))
     sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
