@@ -20,7 +20,15 @@ simulator, or ``--simulator independent``), the default estimate of
 ``paper,narrowband_excitation`` with its Laplace sd (no sampler, no settling), and per
 parameter the mean and sd over records of the z-score (estimate - truth) / sd, then the
 bias of :math:`s`, :math:`p`, :math:`a_2` and :math:`\omega_f^2` in units of their own
-scatter over the records.  One worker a record (``--workers``).
+scatter over the records, for each of ``--variants``:
+
+- ``default``: the default equations and blocks;
+- ``long_blocks``: blocks twice the default's length (204.8 s at the defaults: 19 blocks,
+  fewer than the 24 :func:`hosid.spectra.blocks.choose_layout` allows, which this
+  script lowers to 16 for that variant: what the blocks' resolution does);
+- ``without_J2``, ``without_identities``: the default equations less one half.
+
+One worker a record (``--workers``).
 """
 
 from __future__ import annotations
@@ -43,14 +51,40 @@ SEED = 20261128
 MODEL = "paper,narrowband_excitation"
 
 
-def one(args) -> tuple[np.ndarray, np.ndarray]:
-    """Estimate and Laplace sd of one record (``args``: truth, index, settings)."""
+VARIANTS = ("default", "long_blocks", "without_J2", "without_identities")
+
+
+def _settings(variant: str, state_T: float):
+    """``(components, block_seconds)`` of ``variant`` (module docstring)."""
+    from hosid.components.cumulant import ForceKurtosis
+    from hosid.components.identities import Identities
+    from hosid.components.level import Level
+    from hosid.components.spectral import J2
+    from hosid.spectra import blocks
+
+    blocks.choose_layout.__kwdefaults__["min_blocks"] = (
+        16 if variant == "long_blocks" else blocks.MIN_BLOCKS
+    )
+    if variant == "long_blocks":
+        return None, 2.0 * state_T
+    if variant == "without_J2":
+        return [Identities(), Level(), ForceKurtosis()], None
+    if variant == "without_identities":
+        return [J2(with_level=True), Level(), ForceKurtosis()], None
+    return None, None
+
+
+def one(args) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per variant, the estimate and Laplace sd of one record (``args``: truth, index,
+    settings, variants).
+    """
     from independent_sim import simulate
 
     from hosid.inference import estimate
+    from hosid.inference.estimate import prepare_state
     from hosid.model import Model
 
-    truth, i, duration, dt, simulator, seed = args
+    truth, i, duration, dt, simulator, seed, variants = args
     model = Model.from_spec(MODEL)
     theta = np.array([truth[p] for p in model.param_names])
     rng = np.random.default_rng([seed, i])
@@ -58,19 +92,32 @@ def one(args) -> tuple[np.ndarray, np.ndarray]:
         record, _ = simulate(truth, duration=duration, dt=dt, rng=rng)
     else:
         record = model.simulate(theta, duration=duration, dt=dt, rng=rng)
-    est = estimate(record, model, None, settle=False, simulations=0)
-    return est.theta, np.sqrt(np.diag(est.cov))
+    _settings("default", 0.0)  # the default block rule (a worker may have run another)
+    T = prepare_state(record, model).layout.T
+    out = {}
+    for v in variants:
+        components, block_seconds = _settings(v, T)
+        est = estimate(
+            record, model, components, settle=False, simulations=0, block_seconds=block_seconds
+        )
+        out[v] = (est.theta, np.sqrt(np.diag(est.cov)))
+    return out
 
 
-def measure(truth, *, records, duration, dt, simulator, seed, workers) -> dict:
-    """The z-scores and the symmetric functions' bias over ``records`` records."""
+def measure(truth, *, records, duration, dt, simulator, seed, workers, variants) -> dict:
+    """Per variant, the z-scores and the symmetric functions' bias over ``records``."""
     from hosid.model import Model
 
-    names = list(Model.from_spec(MODEL).param_names)
-    theta = np.array([truth[p] for p in names])
-    todo = [(truth, i, duration, dt, simulator, seed) for i in range(records)]
+    todo = [(truth, i, duration, dt, simulator, seed, variants) for i in range(records)]
     with ProcessPoolExecutor(workers) as ex:
         res = list(ex.map(one, todo))
+    return {v: _summary(truth, [r[v] for r in res], Model.from_spec(MODEL)) for v in variants}
+
+
+def _summary(truth, res, model) -> dict:
+    """The z-scores and the symmetric functions' bias of one variant."""
+    names = list(model.param_names)
+    theta = np.array([truth[p] for p in names])
     est = np.array([r[0] for r in res])
     sd = np.array([r[1] for r in res])
     z = (est - theta) / sd
@@ -86,38 +133,37 @@ def measure(truth, *, records, duration, dt, simulator, seed, workers) -> dict:
         k: {"bias/scatter": (v.mean() - t) / v.std(ddof=1), "scatter/truth": v.std(ddof=1) / t}
         for k, (v, t) in funcs.items()
     }
-    return {"names": names, "z_mean": z.mean(0), "z_sd": z.std(0, ddof=1), "sym": sym}
+    return {
+        "names": names, "z_mean": z.mean(0), "z_sd": z.std(0, ddof=1), "sym": sym,
+        "mean_sd": dict(zip(names, sd.mean(0), strict=True)),
+    }  # fmt: skip
 
 
-def write(result: dict, settings: dict, out: Path) -> Path:
-    """The two tables in ``out``."""
+def write(results: dict, settings: dict, out: Path) -> Path:
+    """Per variant the z table and the symmetric functions' table, in ``out``."""
     n = settings["records"]
+    se = 1 / np.sqrt(n)
     lines = [
         "# A shaping filter and the resonance: what the estimate separates (issue 29)",
         "",
-        f"`python analyses/coincident_resonances.py` ({settings['simulator']} simulator, "
-        f"{n} records of {settings['duration']:g} s at dt {settings['dt']:g}, seed "
-        f"{settings['seed']}; ship-roll-like oscillator, wf {settings['wf']:g}, zf "
-        f"{settings['zf']:g}): the default estimate of `{MODEL}` and its Laplace sd, no "
-        "sampler.  z = (estimate - truth) / sd; a calibrated estimate has z mean 0 "
-        f"(se {1 / np.sqrt(n):.2f}) and sd 1.",
-        "",
-        "| parameter | z mean | z sd |",
-        "|---|---|---|",
+        f"`python analyses/coincident_resonances.py {' '.join(settings['argv'])}` "
+        f"({settings['simulator']} simulator, {n} records of {settings['duration']:g} s at "
+        f"dt {settings['dt']:g}, seed {settings['seed']}; ship-roll-like oscillator, wf "
+        f"{settings['wf']:g}, zf {settings['zf']:g}): the estimate of `{MODEL}` and its "
+        "Laplace sd, no sampler (variants: the module docstring).  z = (estimate - truth) "
+        f"/ sd; a calibrated estimate has z mean 0 (se {se:.2f}) and sd 1.  Below: the "
+        "symmetric functions of the two squared frequencies against the pair itself, bias "
+        f"in units of the estimates' own scatter over the records (se {se:.2f}).",
     ]
-    for p, m, s in zip(result["names"], result["z_mean"], result["z_sd"], strict=True):
-        lines.append(f"| {p} | {m:+.2f} | {s:.2f} |")
-    lines += [
-        "",
-        "The symmetric functions of the two squared frequencies against the pair itself: "
-        f"bias in units of the estimates' own scatter over the records (se "
-        f"{1 / np.sqrt(n):.2f}).",
-        "",
-        "| quantity | bias / scatter | scatter / truth |",
-        "|---|---|---|",
-    ]
-    for k, v in result["sym"].items():
-        lines.append(f"| {k} | {v['bias/scatter']:+.2f} | {v['scatter/truth']:.4f} |")
+    for variant, result in results.items():
+        lines += ["", f"## {variant}", "", "| parameter | z mean | z sd | mean sd |"]
+        lines.append("|---|---|---|---|")
+        rows = zip(result["names"], result["z_mean"], result["z_sd"], strict=True)
+        for p, m, s in rows:
+            lines.append(f"| {p} | {m:+.2f} | {s:.2f} | {result['mean_sd'][p]:.4g} |")
+        lines += ["", "| quantity | bias / scatter | scatter / truth |", "|---|---|---|"]
+        for k, v in result["sym"].items():
+            lines.append(f"| {k} | {v['bias/scatter']:+.2f} | {v['scatter/truth']:.4f} |")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines) + "\n")
     return out
@@ -132,19 +178,23 @@ def main(argv: Sequence[str] | None = None) -> Path:
     ap.add_argument("--wf", type=float, default=0.6)
     ap.add_argument("--zf", type=float, default=0.1)
     ap.add_argument("--simulator", choices=("hosid", "independent"), default="hosid")
+    ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
     ap.add_argument("--seed", type=int, default=SEED)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=RESULTS)
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = ap.parse_args(argv)
     if args.records < 2:
         ap.error("--records must be at least 2")
     truth = {**SHIP, "wf": args.wf, "zf": args.zf}
-    settings = vars(args)
-    result = measure(
+    shown = [a for k, a in enumerate(argv) if "--out" not in (a, argv[k - 1] if k else "")]
+    settings = {**vars(args), "argv": shown}
+    results = measure(
         truth, records=args.records, duration=args.duration, dt=args.dt,
         simulator=args.simulator, seed=args.seed, workers=args.workers,
+        variants=tuple(args.variants),
     )  # fmt: skip
-    path = write(result, settings, args.out)
+    path = write(results, settings, args.out)
     print(path.read_text())
     return path
 
