@@ -75,6 +75,7 @@ from .solutions import (
     acceptable,
     alternatives,
     bounds,
+    capped,
     select_solution,
     solve_rounds,
     solved,
@@ -336,7 +337,7 @@ def estimate(
             "the estimate is corrected for the impulses' sampling bias (indirect inference: "
             f"{DEFAULT_ITERATIONS} x {simulations} records simulated near the estimate)"
         )
-    cov = _capped(ql.laplace(theta, typical_scale(model, state, theta)), upper - lower)
+    cov = capped(ql.laplace(theta, typical_scale(model, state, theta)), upper - lower)
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
     others = alternatives(ql, theta, solutions, cov, J_best)
@@ -376,12 +377,3 @@ def _starts(state, model: Model, start, whitening: bool, chain: bool) -> list[np
     if chain:
         return [chain_pilot(ChainState.of(state), System.single(model))]
     return [pilot_estimate(state, model)]
-
-
-def _capped(cov: np.ndarray, width: np.ndarray) -> np.ndarray:
-    """``cov`` with no parameter's sd above a quarter of its support's ``width``: one the
-    equations barely see (e.g. at a bound of its support) gets no more spread than that.
-    """
-    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
-    cap = np.where(np.isfinite(width), 0.25 * width, np.inf)
-    return cov * np.outer(*(2 * [np.minimum(1.0, cap / sd)]))

@@ -2,7 +2,7 @@ r"""The solutions of the estimating equations: the search, and the choice among 
 
 :func:`solve_rounds` solves from one start within the search's :func:`bounds`, in
 rounds of (prepare the equations at the current vector, solve), at each parameter's
-:func:`typical_scale`.
+:func:`typical_scale`; :func:`capped` bounds the Laplace covariance of the result.
 
 A model whose force goes through a shaping filter is solved from several pilots
 (:func:`hosid.inference.pilot.whitened_pilots`: the filter and the oscillator may swap).
@@ -27,6 +27,7 @@ __all__ = [
     "acceptable",
     "alternatives",
     "bounds",
+    "capped",
     "select_solution",
     "solve_rounds",
     "solved",
@@ -160,3 +161,12 @@ def solve_rounds(state, model, components, theta, rounds, logs, lower, upper):
             raise HosidInputError("the estimating equations have no finite solution")
         theta = new
     return theta, ql
+
+
+def capped(cov: np.ndarray, width: np.ndarray) -> np.ndarray:
+    """``cov`` with no parameter's sd above a quarter of its support's ``width``: one the
+    equations barely see (e.g. at a bound of its support) gets no more spread than that.
+    """
+    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    cap = np.where(np.isfinite(width), 0.25 * width, np.inf)
+    return cov * np.outer(*(2 * [np.minimum(1.0, cap / sd)]))

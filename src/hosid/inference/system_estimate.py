@@ -56,7 +56,7 @@ from ..screen import check_record, reject_failures
 from .chain_pilot import chain_pilot
 from .estimate import Estimate
 from .gmm import hansen
-from .solutions import alternatives, bounds, solve_rounds, typical_scale
+from .solutions import alternatives, bounds, capped, solve_rounds, typical_scale
 
 __all__ = [
     "BLOCKS_PER_EQUATION",
@@ -172,11 +172,7 @@ def estimate_system(
     logs = system.log_params
     theta, ql = solve_rounds(state, system, components, theta0, rounds, logs, lower, upper)
     J_best = float(-2.0 * ql(theta))
-    cov = ql.laplace(theta, typical_scale(system, state, theta))
-    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
-    cap = np.where(np.isfinite(upper - lower), 0.25 * (upper - lower), np.inf)
-    f = np.minimum(1.0, cap / sd)
-    cov = cov * np.outer(f, f)
+    cov = capped(ql.laplace(theta, typical_scale(system, state, theta)), upper - lower)
     sigma_v = restoration(state, system, theta).velocity_sd
     sigma_v = float(sigma_v[0]) if system.single_names else sigma_v
     others = alternatives(ql, theta, [theta], cov, J_best)
