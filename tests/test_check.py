@@ -646,3 +646,29 @@ def test_command_line_with_emcee(tmp_path, capsys):
     # null in JSON); the named models' gaps fall
     g = [math.inf if v is None else v for v in rep["gaps"]]
     assert g[2] < g[1] < g[0]
+
+
+def test_a_base_model_whose_settled_fit_fails_is_fitted_as_given():
+    """diagnose's base fit: where the excitation settled for the record fails (a white
+    model's band edge fitted to a narrow-band force, outside its priors), the model as
+    given is fitted instead and the settings say so; if that fails too, the first error.
+    """
+    calls = []
+
+    def check(model, ss, posterior, keep=True, settle=True):
+        calls.append(settle)
+        if settle:
+            raise HosidInputError("no draw near its estimate lies inside the priors")
+        return "as given"
+
+    chk, note = dg._base_check(check, "paper", None, "screen")
+    assert (chk, calls) == ("as given", [True, False])
+    assert note.startswith("as given") and "inside the priors" in note
+
+    def failing(model, ss, posterior, keep=True, settle=True):
+        raise HosidInputError(f"settle={settle}")
+
+    with pytest.raises(HosidInputError, match="settle=True"):
+        dg._base_check(failing, "paper", None, "screen")
+    chk, note = dg._base_check(lambda *a, **k: "settled", "paper", None, "screen")
+    assert (chk, note) == ("settled", "excitation settled for the record")

@@ -205,6 +205,32 @@ def test_estimate_with_the_matching_filter():
     for k, v in truth.items():
         assert abs(est.values[k] - v) < 3.5 * est.sd[k], k
     assert est.test["p_value"] > 0.001
+    # weighed with the covariance of 8 records simulated at the estimate (same blocks)
+    assert est.ql.info["covariance_dof"] == 8 * (est.ql.B - 1)
+    assert any("simulated at the estimate" in n for n in est.notes)
+
+
+def test_pooled_covariance_of_simulated_records():
+    """sum_r U_r'U_r / sum_r (B_r - 1) over the records whose equations are the first
+    one's; None from fewer than two.
+    """
+    from types import SimpleNamespace
+
+    from hosid.inference.simulated import pooled_covariance
+
+    rng = np.random.default_rng(0)
+    U = [rng.normal(size=(b, 3)) for b in (20, 30, 25)]
+
+    class Fake:
+        def prepare(self, st, model, theta):
+            return SimpleNamespace(k=3, labels=st[0], influence=st[1])
+
+    states = [(("a", "b", "c"), U[0]), (("a", "b", "x"), U[1]), (("a", "b", "c"), U[2])]
+    cov = pooled_covariance(states, None, [Fake()], None)
+    expected = (U[0].T @ U[0] + U[2].T @ U[2]) / (19 + 24)
+    np.testing.assert_allclose(cov.S, expected, rtol=1e-12)
+    assert (cov.dof, cov.labels) == (43, ("a", "b", "c"))
+    assert pooled_covariance(states[:2], None, [Fake()], None) is None
 
 
 def test_solution_kept_is_the_best_one_no_acceptable_weight_rejects():

@@ -289,11 +289,11 @@ def diagnose(
     rep_ss, path_ss, cand_ss = np.random.SeedSequence(int(rng.integers(2**63 - 1))).spawn(3)
     seeds = rep_ss.spawn(int(replicates))
 
-    def check(model, ss, method, keep=True):
+    def check(model, ss, method, keep=True, settle=True):
         gen = np.random.default_rng(ss.spawn(1)[0])
         return check_model(
             record, model, rng=gen, replicate_seeds=seeds, spec=spec, method=method,
-            keep_replicates=keep,
+            keep_replicates=keep, settle=settle,
         )  # fmt: skip
 
     from ..progress import bar as progress_bar
@@ -311,7 +311,8 @@ def diagnose(
     failed: dict[str, str] = {}
     try:
         stage(f"fit base ({posterior})")
-        current = base_chk = check(base_model, path_ss, posterior)
+        current, base_note = _base_check(check, base_model, path_ss, posterior)
+        base_chk = current
         bar.update()
         for c in cands:  # the fit may have added an excitation term that covers one
             if c not in current.model.candidates:
@@ -358,6 +359,7 @@ def diagnose(
     finally:
         bar.close()
     settings = {
+        "base": base_note,
         "replicates": int(replicates),
         "alpha": float(alpha),
         "threshold": float(threshold),
@@ -374,3 +376,19 @@ def diagnose(
     diag = Diagnosis(base_chk, gaps_of, current, "", settings, failed, steps, rounds)
     diag.decision = decision_text(diag)
     return diag
+
+
+def _base_check(check, model, ss, posterior):
+    """The base model's check and how it was fitted: with the excitation settled for the
+    record (a band's edge added, :func:`hosid.inference.estimate.estimate`), or, where
+    that fit fails (a white model's edge fitted to a narrow-band force can land far
+    outside its priors), the model as given; the first error stands if both fail.
+    """
+    try:
+        return check(model, ss, posterior), "excitation settled for the record"
+    except HosidInputError as exc:
+        try:
+            chk = check(model, ss, posterior, settle=False)
+        except HosidInputError:
+            raise exc from None
+        return chk, f"as given: with the excitation settled its fit failed ({exc})"

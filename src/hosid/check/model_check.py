@@ -170,6 +170,7 @@ def check_model(
     spec: MeasureSpec | None = None,
     method: str = "emcee",
     keep_replicates: bool = False,
+    settle: bool = True,
 ) -> ModelCheck:
     """Fit ``model`` and measure the record's gap from its posterior-predictive replicates.
 
@@ -191,6 +192,9 @@ def check_model(
         :func:`hosid.check.posterior.screen_sample` (module docstring).
     keep_replicates : bool
         Keep the replicate records (for the calibration of :mod:`hosid.check.selection`).
+    settle : bool
+        Settle the excitation against the record (:func:`hosid.inference.estimate.estimate`);
+        false fits ``model`` as given.
 
     Returns
     -------
@@ -206,14 +210,14 @@ def check_model(
     spec = MeasureSpec.from_record(record) if spec is None else spec
     tree = None
     if method == "emcee":
-        tree = fit(record, model=model, seed=rng, progress=False)
+        tree = fit(record, model=model, seed=rng, progress=False, settle=settle)
         model = stored_model(tree)  # with the excitation terms added
         theta_hat = dict(attr(tree, "estimate"))
         hansen = dict(attr(tree, "calibration")["hansen"])
         sample = tree_sample(tree, model)
         info: dict = {"draws": int(sample.shape[0])}
     elif method == "screen":
-        est = estimate(record, model, simulations=0)
+        est = estimate(record, model, simulations=0, settle=settle)
         model = est.model
         theta_hat, hansen = est.values, dict(est.test)
         sample, info = screen_sample(est, rng)

@@ -6,7 +6,9 @@ r"""Record -> state -> components -> calibrated quasi-likelihood and its mode.
 2. a closed-form pilot (:mod:`hosid.inference.pilot`);
 3. two rounds of efficient GMM (:mod:`hosid.inference.gmm`): the components are
    prepared at the current estimate (weights, velocity restoration), stacked,
-   weighted with their influence covariance and solved.
+   weighted with their influence covariance and solved; under a shaping filter solved
+   once more with the covariance of the same equations on records simulated at the
+   estimate (:func:`hosid.inference.simulated.refined`).
 
 :func:`fit` adds the priors (eq-65 constraint by default), the calibration of
 :mod:`hosid.inference.calibrate` and emcee (:mod:`hosid.inference.sampler`), and
@@ -65,12 +67,13 @@ from ..screen import check_record, reject_failures
 from ..state import RecordState
 from ..verdicts import Check
 from .chain_pilot import chain_pilot
-from .correction import DEFAULT_ITERATIONS, DEFAULT_SIMULATIONS, unbiased
+from .correction import DEFAULT_SIMULATIONS
 from .gmm import QuasiLikelihood, hansen
 from .maps import likelihood_map
 from .pilot import initial_theta, whitened_pilots
 from .pilot import pilot as pilot_estimate
 from .settle import settled_note, settled_term, white_limit
+from .simulated import refined
 from .solutions import (
     acceptable,
     alternatives,
@@ -262,7 +265,9 @@ def estimate(
     With ``impulsive_excitation`` and fewer than one impulse a sample, the estimate is
     corrected for its sampling bias by ``simulations`` records of the model a step
     (:mod:`hosid.inference.correction`; 0: not; their seed is fixed by the record's
-    samples), with a progress bar when ``progress``.  ``support``: priors whose supports
+    samples), with a progress bar when ``progress``; with ``narrowband_excitation`` the
+    same number of records simulated at the estimate weigh its equations
+    (:func:`hosid.inference.simulated.refined`).  ``support``: priors whose supports
     bound the search instead of the default priors' (used when it names the model's
     parameters, as the priors a fit is given do).
 
@@ -326,17 +331,15 @@ def estimate(
             est.excitation_test = test
             return est
         notes.append(settled_note(test, kept=True))
-    J_best = float(-2.0 * ql(theta))
     solutions = [t for t, _, _ in found]
-    # the impulses' sampling bias (.correction), where single impulses show: fewer than
-    # one a sample (more make a force Gaussian at the record's scale, restored exactly)
-    if model.has("rate") and simulations and theta[model.index("rate")] * state.dt < 1.0:
-        theta, ql = unbiased(state, model, components, theta, ql, simulations, progress)
-        J_best, solutions = float(-2.0 * ql(theta)), [theta]
-        notes.append(
-            "the estimate is corrected for the impulses' sampling bias (indirect inference: "
-            f"{DEFAULT_ITERATIONS} x {simulations} records simulated near the estimate)"
+    if simulations:
+        theta, ql, done = refined(
+            state, model, components, theta, ql, simulations, (logs, lower, upper), progress
         )
+        notes += done
+        if model.has("rate") and done:  # the other solutions are of the unshifted equations
+            solutions = [theta]
+    J_best = float(-2.0 * ql(theta))
     cov = capped(ql.laplace(theta, typical_scale(model, state, theta)), upper - lower)
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)

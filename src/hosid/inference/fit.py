@@ -110,7 +110,7 @@ def fit(
         comps = components_for(o.cost, band=band, form=o.form, domain=o.domain)
     est = estimate(
         record, structure, comps, block_seconds=o.block_seconds, force=o.force, unit=o.unit,
-        checks=o.checks, progress=o.progress, support=o.priors,
+        checks=o.checks, progress=o.progress, support=o.priors, settle=o.settle,
     )  # fmt: skip
     structure = est.model  # with the excitation terms the record calls for
     timings = {"estimate": time.perf_counter() - t0}

@@ -62,6 +62,10 @@ class FitOptions:
         Fit a record that fails a check anyway.
     checks : sequence of Check, optional
         The record's checks when the caller already made them.
+    settle : bool
+        Settle the excitation against the record (a band's edge added, a shaping filter
+        the record does not show dropped: :func:`hosid.inference.estimate.estimate`);
+        false fits the model as given.
     """
 
     cost: str | None = None
@@ -84,6 +88,7 @@ class FitOptions:
     unit: str = "m"
     force: bool = False
     checks: Sequence[Any] | None = None
+    settle: bool = True
 
     @classmethod
     def of(cls, options: FitOptions | None = None, **changes) -> FitOptions:
