@@ -1,7 +1,10 @@
 r"""The model-discrepancy workflow: name the missing effects, one at a time.
 
 :func:`diagnose` fits the base model (:func:`hosid.check.model_check.check_model`:
-emcee, or the cheaper screened posterior), measures its posterior-predictive gap
+emcee, or the cheaper screened posterior; with the excitation settled for the record,
+or as given where that fit fails: a white model's band edge fitted to a narrow-band
+force at a ship's resonance landed far outside its priors, and the record stopped with
+an error before), measures its posterior-predictive gap
 (:mod:`hosid.check.gaps`) and repeats rounds of
 
 1. **weigh** every candidate effect not yet in the model from the fit itself
