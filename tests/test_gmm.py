@@ -242,3 +242,27 @@ def test_too_few_blocks_singular_or_dead_equations_raise():
     twice = [_moments(y, [0, 1], "a"), _moments(y, [0], "b")]
     with pytest.raises(ValueError, match="linearly dependent"):
         quasi_likelihood(twice, n_params=2)
+
+
+def test_pooled_covariance_of_several_records():
+    """sum_r U_r'U_r / sum_r (B_r - 1) over the records whose equations are the first
+    one's (an equation without columns ignored); None from fewer than two.
+    """
+    from types import SimpleNamespace
+
+    from hosid.inference.gmm import pooled_covariance
+
+    rng = np.random.default_rng(0)
+    U = [rng.normal(size=(b, 3)) for b in (20, 30, 25)]
+    empty = SimpleNamespace(k=0, labels=(), influence=np.zeros((20, 0)))
+
+    def record(labels, u):
+        return [SimpleNamespace(k=3, labels=labels, influence=u), empty]
+
+    sets = [record(("a", "b", "c"), U[0]), record(("a", "b", "x"), U[1]),
+            record(("a", "b", "c"), U[2])]  # fmt: skip
+    cov = pooled_covariance(sets, "test records")
+    expected = (U[0].T @ U[0] + U[2].T @ U[2]) / (19 + 24)
+    np.testing.assert_allclose(cov.S, expected, rtol=1e-12)
+    assert (cov.dof, cov.labels, cov.source) == (43, ("a", "b", "c"), "2 test records")
+    assert pooled_covariance(sets[:2]) is None

@@ -210,29 +210,6 @@ def test_estimate_with_the_matching_filter():
     assert any("simulated at the estimate" in n for n in est.notes)
 
 
-def test_pooled_covariance_of_simulated_records():
-    """sum_r U_r'U_r / sum_r (B_r - 1) over the records whose equations are the first
-    one's; None from fewer than two.
-    """
-    from types import SimpleNamespace
-
-    from hosid.inference.simulated import pooled_covariance
-
-    rng = np.random.default_rng(0)
-    U = [rng.normal(size=(b, 3)) for b in (20, 30, 25)]
-
-    class Fake:
-        def prepare(self, st, model, theta):
-            return SimpleNamespace(k=3, labels=st[0], influence=st[1])
-
-    states = [(("a", "b", "c"), U[0]), (("a", "b", "x"), U[1]), (("a", "b", "c"), U[2])]
-    cov = pooled_covariance(states, None, [Fake()], None)
-    expected = (U[0].T @ U[0] + U[2].T @ U[2]) / (19 + 24)
-    np.testing.assert_allclose(cov.S, expected, rtol=1e-12)
-    assert (cov.dof, cov.labels) == (43, ("a", "b", "c"))
-    assert pooled_covariance(states[:2], None, [Fake()], None) is None
-
-
 def test_solution_kept_is_the_best_one_no_acceptable_weight_rejects():
     """Quadratic quasi-likelihoods -J/2 = -(floor + w |t - s|^2)/2 on 2 df (the 99 %
     point 9.2).  The second solution's weight is 1e-4 of the first's, so its own J (0.9)

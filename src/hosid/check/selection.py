@@ -59,7 +59,7 @@ import numpy as np
 
 from ..errors import HosidInputError
 from ..inference.estimate import estimate
-from ..inference.gmm import BlockCovariance
+from ..inference.gmm import BlockCovariance, pooled_covariance
 from ..model.model import Model
 from ..record import Record
 from .evidence import COORDINATES, Evidence, critical_z, null_moments, screen
@@ -165,33 +165,27 @@ def null_covariances(
     start: Mapping[str, float],
 ) -> dict[str, BlockCovariance]:
     r"""The covariance of each candidate's null equations (:func:`null_moments` at
-    ``start``) pooled over the blocks of records simulated from ``model``:
-    :math:`\hat\Sigma = \sum_r U_r^{\mathsf T}U_r / \sum_r (B_r - 1)` with
-    :math:`\sum_r (B_r - 1)` degrees of freedom (:mod:`hosid.check.evidence`).  Not for a candidate
-    whose equations move with its own value (the coloured force's corner, an impulse
-    rate), nor from
-    fewer than two records; a replicate whose equations are not the first one's (its state
-    chose another band, so other labels) is left out of the pool.
+    ``start``) pooled over the blocks of records simulated from ``model``
+    (:func:`hosid.inference.gmm.pooled_covariance`; :mod:`hosid.check.evidence`).  Not
+    for a candidate whose equations move with its own value (the coloured force's corner,
+    an impulse rate); a replicate whose equations fail is left out.
     """
     states = [{} for _ in replicates]
     out = {}
     for c in candidates:
         if COORDINATES[c].kind in ("inverse_square", "inverse"):
             continue
-        S, dof, labels, used = 0.0, 0, None, 0
-        for rep, st in zip(replicates, states, strict=True):
-            try:
-                moments = null_moments(rep, model, c, start, st)
-            except (HosidInputError, ValueError):
-                continue
-            U = np.concatenate([m.influence for m in moments], axis=1)
-            these = tuple(lab for m in moments for lab in m.labels)
-            if labels is not None and these != labels:
-                continue  # a replicate whose state gave other equations (e.g. a band edge)
-            labels = these
-            S, dof, used = S + U.T @ U, dof + U.shape[0] - 1, used + 1
-        if used >= 2:
-            out[c] = BlockCovariance(S / dof, dof, labels, f"{used} simulated records")
+
+        def sets(c=c):  # the replicates' null equations (a failing one left out)
+            for rep, st in zip(replicates, states, strict=True):
+                try:
+                    yield null_moments(rep, model, c, start, st)
+                except (HosidInputError, ValueError):
+                    continue
+
+        cov = pooled_covariance(sets())
+        if cov is not None:
+            out[c] = cov
     return out
 
 

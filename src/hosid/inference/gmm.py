@@ -64,6 +64,7 @@ __all__ = [
     "QuasiLikelihood",
     "Transformed",
     "j_difference",
+    "pooled_covariance",
     "quasi_likelihood",
     "solve",
     "weight_factor",
@@ -86,6 +87,27 @@ class BlockCovariance:
     dof: int
     labels: tuple[str, ...]
     source: str = "simulated records"
+
+
+def pooled_covariance(moment_sets, source: str = "simulated records") -> BlockCovariance | None:
+    r"""The covariance of one block's equations pooled over records, each given by its
+    prepared :class:`~hosid.components.base.Moments` (``moment_sets``, iterable):
+    :math:`\hat\Sigma = \sum_rU_r^{\mathsf T}U_r/\sum_r(B_r - 1)` on
+    :math:`\sum_r(B_r - 1)` degrees of freedom.  A record whose equations are not the
+    first one's (its state chose another band, so other labels) is left out; ``None``
+    from fewer than two records.  ``source`` names the records in the note.
+    """
+    S, dof, labels, used = 0.0, 0, None, 0
+    for moments in moment_sets:
+        moments = [m for m in moments if m.k]
+        these = tuple(lab for m in moments for lab in m.labels)
+        if labels is not None and these != labels:
+            continue
+        U = np.concatenate([m.influence for m in moments], axis=1)
+        labels, S, dof, used = these, S + U.T @ U, dof + U.shape[0] - 1, used + 1
+    if used < 2:
+        return None
+    return BlockCovariance(S / dof, dof, labels, f"{used} {source}")
 
 
 @dataclass

@@ -49,10 +49,10 @@ import numpy as np
 from ..errors import HosidInputError
 from ..progress import Stages, bar
 from .correction import DEFAULT_ITERATIONS, unbiased
-from .gmm import BlockCovariance, quasi_likelihood, solve
+from .gmm import pooled_covariance, quasi_likelihood, solve
 from .solutions import typical_scale
 
-__all__ = ["pooled_covariance", "refined", "reweighted"]
+__all__ = ["refined", "reweighted"]
 
 
 def refined(state, model, components, theta, ql, n, search, progress=False):
@@ -82,28 +82,10 @@ def refined(state, model, components, theta, ql, n, search, progress=False):
     return theta, ql, notes
 
 
-def pooled_covariance(states, model, components, theta) -> BlockCovariance | None:
-    r"""The covariance of ``components``' equations at ``theta`` pooled over the blocks of
-    the record ``states`` (iterable): :math:`\sum_rU_r^{\mathsf T}U_r/\sum_r(B_r - 1)`;
-    a record whose equations are not the first one's (another band) is left out; ``None``
-    from fewer than two records.
-    """
-    S, dof, labels, used = 0.0, 0, None, 0
-    for st in states:
-        moments = [m for m in (c.prepare(st, model, theta) for c in components) if m.k]
-        these = tuple(lab for m in moments for lab in m.labels)
-        if labels is not None and these != labels:
-            continue
-        U = np.concatenate([m.influence for m in moments], axis=1)
-        labels, S, dof, used = these, S + U.T @ U, dof + U.shape[0] - 1, used + 1
-    if used < 2:
-        return None
-    return BlockCovariance(S / dof, dof, labels, f"{used} records simulated at the estimate")
-
-
 def reweighted(state, model, components, theta, n, logs, lower, upper, progress=False):
     """The estimate of the record's ``state`` solved again with its equations weighed
-    by :func:`pooled_covariance` of ``n`` records simulated at ``theta`` (module
+    by :func:`hosid.inference.gmm.pooled_covariance` of ``n`` records simulated at
+    ``theta`` (module
     docstring), and its quasi-likelihood; ``theta`` and ``None`` when fewer than two
     simulated records give the record's equations.
     """
@@ -117,14 +99,15 @@ def reweighted(state, model, components, theta, n, logs, lower, upper, progress=
     else:
         b = bar(f"hosid: {label}", total=n, enabled=bool(progress), unit="record")
 
-    def simulated():
+    def simulated():  # each record's equations at theta
         for _ in range(n):
             rec = model.simulate(theta, duration=state.record.duration, dt=state.dt, rng=rng)
-            yield prepare_state(rec, model, block_seconds=state.layout.T)
+            st = prepare_state(rec, model, block_seconds=state.layout.T)
+            yield [c.prepare(st, model, theta) for c in components]
             b.update(1)
 
     try:
-        cov = pooled_covariance(simulated(), model, components, theta)
+        cov = pooled_covariance(simulated(), "records simulated at the estimate")
     except (HosidInputError, ValueError):
         cov = None
     finally:
