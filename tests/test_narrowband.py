@@ -379,7 +379,8 @@ def test_coincident_resonances_study_tiny(tmp_path):
     try:
         cr = importlib.import_module("coincident_resonances")
         out = tmp_path / "cr.md"
-        cr.main(["--records", "2", "--duration", "2000", "--workers", "1", "--out", str(out)])
+        cr.main(["--records", "2", "--duration", "2000", "--workers", "1", "--out", str(out),
+                 "--variants", "default", "simulated_weight"])  # fmt: skip
     finally:
         sys.path.remove(str(analyses))
         for name in ("coincident_resonances", "excitation_study", "independent_sim"):
