@@ -427,3 +427,19 @@ def test_the_monitor_s_figure_leaves_the_session_s_backend_alone():
     assert isinstance(fig, Figure)
     assert [ax.get_ylabel() for ax in fig.axes] == ["a1", "S0"]
     assert png(fig)[:4] == b"\x89PNG"
+
+
+def test_a_stage_uses_the_commands_bar_or_its_own():
+    """``staged``: under a command's :class:`Stages` the stage relabels its one bar (left
+    open for the next stage); alone it makes a bar of its own and closes it.
+    """
+    from hosid.progress import Stages, staged
+
+    stages = Stages("hosid fit", enabled=False)
+    with staged(stages, "weight", total=8, unit="record") as b:
+        pass
+    assert b is stages.bar and b.total == 8 and b.unit == "record"
+    stages.close()
+    with staged(False, "weight", total=2) as own:
+        pass
+    assert own is not stages.bar and own.total == 2 and own.disable

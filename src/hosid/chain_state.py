@@ -355,13 +355,9 @@ def _acceleration_channel(record: Record, name: str, got, band: Band) -> Channel
     sx, sv = float(np.std(x)), float(np.std(v))
     if not (sx > 0 and sv > 0 and math.isfinite(sv / sx)):
         raise HosidInputError(f"channel {name!r} is constant: it has no response to identify")
-    # no displacement noise floor: a sensor's noise is flat in acceleration, and what the
-    # floor's test (S_a = A' + N w^4) finds in an integrated acceleration is a chain's
-    # higher modes (a five-storey chain driven at the roof: a floor edge at 14.2 rad/s,
-    # between its second and third modes, that left no J2 band)
-    spectrum = dataclasses.replace(
-        response_spectrum(x, record.dt, sigma_v=sv, bounds=record.bounds), floor=0.0
-    )
+    spectrum = response_spectrum(
+        x, record.dt, sigma_v=sv, bounds=record.bounds, noise_floor=False
+    )  # no displacement noise floor in an integrated acceleration
     scales = Scales(sx, sv, 0.0, record.dt, spectrum.edge)
     return Channel(name, "acceleration", 0.0, scales, spectrum, band)
 

@@ -9,8 +9,10 @@ worker).
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
-__all__ = ["Stages", "bar"]
+__all__ = ["Stages", "bar", "staged"]
 
 
 def bar(
@@ -63,3 +65,19 @@ class Stages:
     def close(self) -> None:
         """Remove the bar."""
         self.bar.close()
+
+
+@contextmanager
+def staged(progress, name: str, *, total: float | None = None, unit: str = "it") -> Iterator:
+    """The bar of stage ``name`` of a long step: the command's own when ``progress`` is its
+    :class:`Stages`, else a bar ``hosid: name`` of its own (shown when ``progress``),
+    closed at the end.
+    """
+    if isinstance(progress, Stages):
+        yield progress.stage(name, total=total, unit=unit)
+        return
+    b = bar(f"hosid: {name}", total=total, enabled=bool(progress), unit=unit)
+    try:
+        yield b
+    finally:
+        b.close()

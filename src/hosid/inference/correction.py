@@ -47,7 +47,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import HosidInputError
-from ..progress import Stages, bar
+from ..progress import staged
 from .gmm import QuasiLikelihood
 
 __all__ = [
@@ -57,6 +57,7 @@ __all__ = [
     "bias",
     "moved",
     "shifted",
+    "simulated_like",
     "unbiased",
     "widening",
 ]
@@ -161,6 +162,16 @@ def shifted(
     )
 
 
+def simulated_like(state, model, theta, rng):
+    """The state of a record of ``model`` at ``theta`` like the record's ``state``: its
+    duration, sampling and blocks.
+    """
+    from .estimate import prepare_state
+
+    rec = model.simulate(theta, duration=state.record.duration, dt=state.dt, rng=rng)
+    return prepare_state(rec, model, block_seconds=state.layout.T)
+
+
 def unbiased(state, model, components, theta, ql, n, progress):
     """The estimate ``theta`` of the record's ``state`` and its quasi-likelihood ``ql``,
     corrected (module docstring) by :func:`bias` of
@@ -168,34 +179,25 @@ def unbiased(state, model, components, theta, ql, n, progress):
     fixed by the record's samples (the estimate stays a function of the record); the
     positive parameters (log-uniform priors) are corrected as ratios.
     """
-    from .estimate import estimate, log_params, prepare_state
+    from .estimate import estimate, log_params
 
     positive = np.zeros(len(theta), dtype=bool)
     positive[log_params(model, model.default_priors(state.scales))] = True
     seed = np.random.SeedSequence(int(state.record.hash[:16], 16))
 
-    def simulated(th, rng):
-        rec = model.simulate(th, duration=state.record.duration, dt=state.dt, rng=rng)
-        return prepare_state(rec, model, block_seconds=state.layout.T)
-
     def estimator(st):
         return estimate(st, model, components, settle=False, simulations=0).theta
 
     rng = np.random.default_rng(seed)
-    label, total = "sampling-bias correction", DEFAULT_ITERATIONS * n
-    if isinstance(progress, Stages):
-        b = progress.stage(label, total=total, unit="record")
-    else:
-        b = bar(f"hosid: {label}", total=total, enabled=bool(progress), unit="record")
-    try:
-        beta, spread = bias(
-            estimator, simulated, theta, positive, rng, n=n, progress=lambda: b.update(1)
-        )
-    except HosidInputError as exc:
-        raise HosidInputError(f"the sampling-bias correction failed: {exc}") from None
-    finally:
-        if not isinstance(progress, Stages):
-            b.close()
+    total = DEFAULT_ITERATIONS * n
+    with staged(progress, "sampling-bias correction", total=total, unit="record") as b:
+        try:
+            beta, spread = bias(
+                estimator, lambda th, r: simulated_like(state, model, th, r), theta,
+                positive, rng, n=n, progress=lambda: b.update(1),
+            )  # fmt: skip
+        except HosidInputError as exc:
+            raise HosidInputError(f"the sampling-bias correction failed: {exc}") from None
     corrected = moved(theta, -beta, positive)
     first = shifted(ql, beta, positive, n)
     from .solutions import typical_scale

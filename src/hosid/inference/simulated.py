@@ -47,8 +47,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import HosidInputError
-from ..progress import Stages, bar
-from .correction import DEFAULT_ITERATIONS, unbiased
+from ..progress import staged
+from .correction import DEFAULT_ITERATIONS, simulated_like, unbiased
 from .gmm import pooled_covariance, quasi_likelihood, solve
 from .solutions import typical_scale
 
@@ -85,34 +85,22 @@ def refined(state, model, components, theta, ql, n, search, progress=False):
 def reweighted(state, model, components, theta, n, logs, lower, upper, progress=False):
     """The estimate of the record's ``state`` solved again with its equations weighed
     by :func:`hosid.inference.gmm.pooled_covariance` of ``n`` records simulated at
-    ``theta`` (module
-    docstring), and its quasi-likelihood; ``theta`` and ``None`` when fewer than two
-    simulated records give the record's equations.
+    ``theta`` (module docstring), and its quasi-likelihood; ``theta`` and ``None`` when
+    fewer than two simulated records give the record's equations.
     """
-    from .estimate import prepare_state
+    rng = np.random.default_rng(np.random.SeedSequence([int(state.record.hash[:16], 16), 2]))
+    with staged(progress, "weight from simulated records", total=n, unit="record") as b:
 
-    seed = np.random.SeedSequence([int(state.record.hash[:16], 16), 2])
-    rng = np.random.default_rng(seed)
-    label = "weight from simulated records"
-    if isinstance(progress, Stages):
-        b = progress.stage(label, total=n, unit="record")
-    else:
-        b = bar(f"hosid: {label}", total=n, enabled=bool(progress), unit="record")
+        def simulated():  # each record's equations at theta
+            for _ in range(n):
+                st = simulated_like(state, model, theta, rng)
+                yield [c.prepare(st, model, theta) for c in components]
+                b.update(1)
 
-    def simulated():  # each record's equations at theta
-        for _ in range(n):
-            rec = model.simulate(theta, duration=state.record.duration, dt=state.dt, rng=rng)
-            st = prepare_state(rec, model, block_seconds=state.layout.T)
-            yield [c.prepare(st, model, theta) for c in components]
-            b.update(1)
-
-    try:
-        cov = pooled_covariance(simulated(), "records simulated at the estimate")
-    except (HosidInputError, ValueError):
-        cov = None
-    finally:
-        if not isinstance(progress, Stages):
-            b.close()
+        try:
+            cov = pooled_covariance(simulated(), "records simulated at the estimate")
+        except (HosidInputError, ValueError):
+            cov = None
     if cov is None:
         return theta, None
     moments = [m for m in (c.prepare(state, model, theta) for c in components) if m.k]
