@@ -46,6 +46,7 @@ import independent_sim  # noqa: E402
 from hosid.batch import dask_client  # noqa: E402
 from hosid.monitor.changes import ALPHA  # noqa: E402
 from hosid.monitor.run import monitor  # noqa: E402
+from hosid.monitor.tracks import CORRELATION  # noqa: E402
 from hosid.record import write_record  # noqa: E402
 
 WORK = HERE / "out" / "monitor"
@@ -262,17 +263,22 @@ def main(argv: Sequence[str] | None = None) -> Path:
     ap.add_argument("--summary", action="store_true")
     ap.add_argument("--retest", action="store_true", help="test the kept tracks again (no refit)")
     ap.add_argument("--alpha", type=float, default=ALPHA, help="of --retest")
+    ap.add_argument("--correlation", choices=("own", "pooled"), default=CORRELATION,
+                    help="of --retest: each window's correlation, or their mean")  # fmt: skip
     args = ap.parse_args(argv)
     work = WORK / args.tag if args.tag else WORK
     path = work / "results.csv"
     if args.retest:
-        rows = retest(work, alpha=args.alpha)
-        path = work / f"retest-alpha{args.alpha:g}.csv"
+        rows = retest(work, alpha=args.alpha, correlation=args.correlation)
+        name = f"retest-alpha{args.alpha:g}" + (
+            "" if args.correlation == CORRELATION else f"-{args.correlation}"
+        )
+        path = work / f"{name}.csv"
         with path.open("w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=FIELDS, lineterminator="\n")
             w.writeheader()
             w.writerows(rows)
-        md = summarize(path, work / f"retest-alpha{args.alpha:g}", args.alpha)
+        md = summarize(path, work / name, args.alpha)
         print(md.read_text())
         return md
     if not args.summary:

@@ -13,6 +13,12 @@ size-interval coverage and the parameter named, inside binomial 99 % bands aroun
 rates measured on 1000 records (stated at each test).
 """
 
+import csv
+import importlib
+import math
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import linalg, stats
@@ -367,3 +373,69 @@ def test_bad_settings_are_refused(change, message):
     s, cov, names = args.pop("starts"), args.pop("cov"), args.pop("names")
     with pytest.raises(HosidInputError, match=message):
         run(s, s + 1.0, np.zeros((10, 1)), cov, np.random.default_rng(0), names, **args)
+
+
+def test_monitor_limit_study_tiny(tmp_path):
+    """``analyses/monitor_limit.py`` (its numbers: 300 records a case,
+    ``results/monitor/limit.md``) on 3 oracle records of two cases: the ship's -5 % step of
+    a2 is about 3.1 bound-sd of one 4096 s window (``crb.md``: 0.00569 per 4000 s; 20 %
+    for the short simulation of the bound), and every rate is a fraction of the records.
+    """
+    ANALYSES = Path(__file__).resolve().parents[1] / "analyses"
+    sys.path.insert(0, str(ANALYSES))
+    try:
+        ml = importlib.import_module("monitor_limit")
+        ml.main(["--records", "3", "--cases", "ship_a2", "ship_none", "--sim-duration", "8000",
+                 "--workers", "1", "--out", str(tmp_path)])  # fmt: skip
+    finally:
+        sys.path.remove(str(ANALYSES))
+        for name in ("monitor_limit", "monitor_study", "independent_sim"):
+            sys.modules.pop(name, None)
+    with (tmp_path / "limit.csv").open() as fh:
+        rows = {r["case"]: r for r in csv.DictReader(fh)}
+    assert set(rows) == {"ship_a2", "ship_none"}
+    expected = -0.0175 / (0.00569 * (4000 / 4096) ** 0.5)
+    assert math.isclose(float(rows["ship_a2"]["step_sd"]), expected, rel_tol=0.2)
+    assert int(rows["ship_none"]["records"]) == 6
+    for r in rows.values():
+        for k in ("named", "first", "alone", "time_in", "size_in", "any", "wrong_first"):
+            assert 0 <= int(r[k]) <= int(r["records"])
+    assert "| ship_a2 | -5 % |" in (tmp_path / "limit.md").read_text()
+
+
+def test_pooled_correlation_is_the_windows_mean_with_their_own_sds():
+    """``Tracks.changes(correlation="pooled")`` tests each window with its own sds and the
+    mean of the windows' correlations (a failed window, NaN, left out of the mean and of
+    the test); ``"own"`` with each window's own: both against ``joint_changes`` on the
+    covariances built by hand (exact)."""
+    from hosid.monitor.tracks import Tracks
+    from hosid.monitor.windows import Layout
+
+    rng = np.random.default_rng(7)
+    n, names = 10, ["a2", "n2"]
+    starts = np.arange(n) * 100.0
+    corr = np.array([[[1.0, r], [r, 1.0]] for r in rng.uniform(-0.97, -0.85, n)])
+    corr[3] = np.nan
+    sd = rng.uniform(0.8, 1.2, (n, 2))
+    Y = rng.standard_normal((n, 2)) * sd
+    Y[6:, 0] -= 4.0
+    Y[3] = np.nan
+    values = {p: {s: np.full(n, np.nan) for s in ("mean", "sd", "q05", "q50", "q95")}
+              for p in names}  # fmt: skip
+    for j, p in enumerate(names):
+        values[p]["mean"], values[p]["sd"] = Y[:, j], sd[:, j]
+    status = ["ok"] * n
+    status[3] = "failed"
+    tracks = Tracks(Layout(100, 100, 1.0, 10.0), np.arange(n), starts, starts + 100.0, status,
+                    [""] * n, [""] * n, values, dict.fromkeys(names, "drift"), corr)  # fmt: skip
+    ok = np.arange(n) != 3
+    for mode, R in (("pooled", np.broadcast_to(corr[ok].mean(axis=0), corr.shape)), ("own", corr)):
+        got = tracks.changes(alpha=0.01, level=0.95, seed=3, correlation=mode)
+        rng_t = np.random.default_rng(np.random.SeedSequence(3, spawn_key=(0xC4A9,)))
+        want, _ = joint_changes(starts, starts + 100.0, Y, R * sd[:, :, None] * sd[:, None, :],
+                                names, rng=rng_t)  # fmt: skip
+        assert got and [(c.parameter, c.time, c.size) for c in got] == [
+            (c.parameter, c.time, c.size) for c in want
+        ]
+    with pytest.raises(ValueError, match="pooled"):
+        tracks.changes(alpha=0.01, level=0.95, correlation="mean")
