@@ -518,6 +518,17 @@ def hidden_b2():
     return diagnose(rec, "paper", rng=np.random.default_rng(0), replicates=19, posterior="screen")
 
 
+@pytest.fixture(scope="module")
+def hidden_b2_quick():
+    """The same record diagnosed with two candidates (the hidden one and Coulomb friction)
+    and one round: a named effect for the report's files at a fraction of the cost."""
+    rec = _sim({**PAPER_PARAMS, "b2": 6.0}, 7, duration=600.0)
+    return diagnose(
+        rec, "paper", rng=np.random.default_rng(0), replicates=19, posterior="screen",
+        candidates=["quadratic_stiffness", "coulomb_friction"], max_effects=1,
+    )  # fmt: skip
+
+
 @pytest.mark.slow  # about 3 minutes (19 replicates); `hosid diagnose` naming an effect
 # end to end stays in the default suite (test_command_line)
 def test_hidden_quadratic_stiffness_is_named(hidden_b2):
@@ -572,7 +583,8 @@ def test_no_missing_effect_names_none(clean_1000, capsys):
         _ = d.final_tree
 
 
-def test_report_files(hidden_b2, tmp_path):
+def test_report_files(hidden_b2_quick, tmp_path):
+    hidden_b2 = hidden_b2_quick
     figs = (evidence_figure, posterior_figure, gap_figure, measure_gap_figure, measures_figure)
     for make in figs:
         assert isinstance(make(hidden_b2), Figure)
