@@ -47,6 +47,8 @@ from monitor_study import CHANGE_BETWEEN, DURATION, SEED, SYSTEMS, WINDOW  # noq
 from hosid.model.information import cramer_rao  # noqa: E402
 from hosid.monitor.changes import overlap_correlation, share_after  # noqa: E402
 from hosid.monitor.joint import joint_changes  # noqa: E402
+from hosid.monitor.source import Piece  # noqa: E402
+from hosid.monitor.windows import Layout, windows  # noqa: E402
 
 RESULTS = HERE / "results" / "monitor"
 #: a2's relative step of the Done-when, and the power curve's steps in bound-sd per window
@@ -67,15 +69,15 @@ def bound(system: str, a2: float, rng, sim_duration) -> tuple[list[str], np.ndar
     return list(b.names), b.cov
 
 
-def layout(window: float) -> tuple[np.ndarray, np.ndarray]:
-    """The monitor's default windows over the records: back to back, and a last one
-    ending with the record where at least a quarter window is left
-    (:func:`hosid.monitor.windows.windows`)."""
-    n = int(DURATION // window)
-    starts = np.arange(n) * window
-    if DURATION - n * window >= window / 4:
-        starts = np.append(starts, DURATION - window)
-    return starts, starts + window
+def layout(system: str) -> tuple[np.ndarray, np.ndarray]:
+    """The monitor's default windows over a record of this system (its own rule,
+    :func:`hosid.monitor.windows.windows`: back to back, and a last one ending with the
+    record where at least a quarter window is left)."""
+    dt = SYSTEMS[system][1]
+    samples = round(WINDOW[system] / dt)
+    piece = Piece(0.0, np.zeros(round(DURATION / dt)), True)
+    ws = list(windows([piece], Layout(samples, samples, dt, WINDOW[system] / 24)))
+    return np.array([w.start for w in ws]), np.array([w.end for w in ws])
 
 
 def one_case(case: str, system: str, size_sd: float | None, records: int, efficiency: float,
@@ -90,7 +92,7 @@ def one_case(case: str, system: str, size_sd: float | None, records: int, effici
     ia = names.index("a2")
     step = -LOSS * a2 if size_sd is None else -size_sd * float(np.sqrt(c0[ia, ia]))
     c1 = bound(system, a2 + step, rng, sim_duration)[1] if step else c0
-    starts, ends = layout(WINDOW[system])
+    starts, ends = layout(system)
     n = starts.size
     rho = overlap_correlation(starts, ends)
     th0 = np.array([params[k] for k in names])
