@@ -152,6 +152,24 @@ def test_a_white_sensor_noise_sets_the_floor_and_the_edge(run, sd):
     assert w_even < band.omega_low < 4.0
 
 
+def test_a_higher_larger_mode_does_not_hide_the_lower_one(run):
+    """Two modes, the higher one's peak the larger (a chain's floor that moves most in its
+    second mode): the band starts below the lower mode, where its rise from the floor
+    begins, not in the valley between the two (the first run above the floor)."""
+    system = System.single("linear", {"a1": 2.0, "a2": 400.0, "S0": 4000.0})
+    rec = simulate_chain(system, duration=400.0, dt=DT, rng=np.random.default_rng(7),
+                         measured="acceleration")  # fmt: skip
+    sd = 0.3
+    low, high = _bandpass(run[0], 0.0, 8.0), _bandpass(rec.x, 14.0, 60.0)  # a valley between
+    a = low + high + sd * np.random.default_rng(5).standard_normal(low.size)
+    band = acceleration_band(a, DT)
+    assert band.omega_peak == pytest.approx(20.0, abs=1.0)  # the higher mode's
+    level = sd**2 * DT / (2 * math.pi)
+    ws = np.linspace(0.05, 4.0, 4000)
+    w_even = ws[np.argmax(_s_acc(ws) > level)]
+    assert w_even < band.omega_low < 4.0  # as for the lower mode alone
+
+
 @pytest.mark.parametrize("c", [0.01, 0.1, 1.0])
 def test_a_drift_moves_the_edge_above_it(run, c):
     a = run[0]

@@ -170,6 +170,7 @@ def test_killed_monitor_resumes_and_does_every_window_once(record, tmp_path):
     assert len(list(tasks.iterdir())) == 6  # one stored result a window
     summary = json.loads((out / "monitor.json").read_text())
     assert summary["windows"] == 6 and summary["failed_windows"] == []
+    assert summary["correlation"] == "pooled"  # which correlation the change test gave
     again = subprocess.run([*cmd[:-3], "--step", "245.76", "--no-progress"],
                            capture_output=True, text=True)  # fmt: skip
     assert again.returncode == 2 and "other layout" in again.stderr

@@ -16,7 +16,8 @@ held at once.  From the rows the monitor writes, together (staged, then moved in
   ``time``, ``time_lo``, ``time_hi``, ``size``, ``size_lo``, ``size_hi`` (after minus
   before), the parameter's ``kind`` (``drift``: the structure; ``excitation``: the
   force, e.g. a calmer sea) and the test's ``statistic``, ``p_value`` and ``threshold``;
-* ``tracks.png``, ``report.html`` and ``monitor.json`` (settings and counts).
+* ``tracks.png``, ``report.html`` and ``monitor.json`` (settings, counts and the change
+  test's ``alpha``, ``level`` and ``correlation``, :data:`hosid.monitor.tracks.CORRELATION`).
 
 Warm starts are not used: a window's fit starts from its own pilot estimate, which
 costs a few percent of the sampling it would save.

@@ -284,6 +284,7 @@ class Tracks:
             "failed_windows": [int(self.index[i]) for i in self.failed],
             "alpha": alpha,
             "level": level,
+            "correlation": CORRELATION,
             "changes": [self.change_row(c) for c in changes],
             "untested": getattr(self, "reasons", {}),
         }

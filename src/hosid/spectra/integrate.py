@@ -24,9 +24,16 @@ peak :math:`\omega_a` (sought from the 4th bin on, :data:`FIRST_BIN`; a peak the
 drift, not a response, and an error) towards lower frequencies, :math:`\hat S` falls as
 :math:`\omega^4 S_x` until it reaches the floor :math:`F = \min_{\omega \le
 \omega_a}\hat S` (the lowest bins for a record without noise).  :math:`\omega_L` is the
-lowest frequency of the run of bins ending at :math:`\omega_a` on which
+first frequency above the floor's :math:`\omega_F` at which
 
-.. math:: \hat S(\omega) \ge G\,F, \qquad G = 10\ (:data:`BAND_RISE`).
+.. math:: \hat S(\omega) \ge G\,F, \qquad G = 10\ (:data:`BAND_RISE`)
+
+(for one mode the lowest of the run of bins ending at :math:`\omega_a`; a lower mode
+between the floor and the peak is in the band).  A lower mode below the floor's frequency, a local
+peak that rises :math:`G` times above the least ordinate below it, takes the peak's
+place, and so on down: the band starts below the lowest mode that stands out of its floor,
+not in the valley between two modes when a higher one is the larger (a chain's floor
+moving most in its second mode).
 
 Since :math:`N` does not grow with frequency and :math:`N(\omega_F) \le \hat S(\omega_F)
 = F` at the floor's frequency :math:`\omega_F < \omega_L`, every frequency of the band
@@ -233,10 +240,14 @@ def acceleration_band(
             f"the acceleration spectrum is largest at its lowest frequencies "
             f"({omega[first]:.3g} rad/s and below): drift, not a response"
         )
-    k_f = int(np.argmin(S[: k_a + 1]))
+    k_f, k_low = _run(S, k_a)
+    while True:  # a lower mode below the floor, standing out of its own (docstring)
+        peaks = [k for k in range(first + 1, k_f) if S[k - 1] <= S[k] >= S[k + 1]]
+        k_b = max(peaks, key=lambda k: S[k], default=None)
+        if k_b is None or S[k_b] < BAND_RISE * np.min(S[: k_b + 1]):
+            break
+        k_f, k_low = _run(S, k_b)
     F = float(S[k_f])
-    below = np.flatnonzero(S[: k_a + 1] < BAND_RISE * F)
-    k_low = int(below[-1]) + 1
     return Band(
         omega_low=float(omega[k_low]),
         omega_nyquist=math.pi / dt,
@@ -246,6 +257,16 @@ def acceleration_band(
         omega=omega,
         spectrum=S,
     )
+
+
+def _run(S: np.ndarray, k: int) -> tuple[int, int]:
+    """The floor's bin below bin ``k`` and the band's first bin: the first above the floor
+    at which the spectrum ``S`` has risen to :data:`BAND_RISE` times it (``k + 1`` if
+    none).
+    """
+    k_f = int(np.argmin(S[: k + 1]))
+    risen = np.flatnonzero(S[k_f : k + 1] >= BAND_RISE * S[k_f])
+    return k_f, k_f + int(risen[0]) if risen.size else k + 1
 
 
 def integrate_acceleration(
