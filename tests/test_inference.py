@@ -266,6 +266,20 @@ def test_sampler_start_outside_the_support_is_an_input_error():
         )
 
 
+def test_walkers_on_fewer_dimensions_are_an_input_error(monkeypatch):
+    """Walkers that share one coordinate (a start on a line): emcee's check of the start
+    refuses them, and hosid says why in one line."""
+
+    def on_a_line(target, modes, cov, logs, rng, n_walkers):
+        return np.column_stack([rng.normal(size=n_walkers), np.full(n_walkers, 2.0)])
+
+    monkeypatch.setattr(S, "_start", on_a_line)
+    with pytest.raises(HosidInputError, match="walkers span fewer dimensions"):
+        S.run(_gauss_gamma, modes=[np.array([0.5, 2.0])], cov=np.diag([0.1, 0.5]),
+              log_params=[], n_blobs=1, rng=np.random.default_rng(0), n_walkers=8,
+              n_steps=10)  # fmt: skip
+
+
 def test_sampler_starts_at_a_mode_with_a_zero_coordinate():
     chain = S.run(
         _gauss_gamma,

@@ -107,6 +107,15 @@ def _mirror(damping: Sequence[int]):
     return propose
 
 
+#: What a sampler whose walkers span fewer dimensions than the parameters says (emcee's
+#: check of the start, or the KDE move's singular covariance).
+COLLAPSED = (
+    "sampling failed: the walkers span fewer dimensions than the parameters (a degenerate "
+    "posterior: the record does not inform every parameter, or the estimate sits at a "
+    "prior's edge); simplify the model or fix the uninformed parameters"
+)
+
+
 def run(
     log_prob: Callable[[np.ndarray], np.ndarray],
     *,
@@ -190,11 +199,16 @@ def run(
         if steps <= 0:
             return
         with _deferred_interrupt() as interrupted:
-            for _ in sampler.sample(start, iterations=steps, store=True):
-                if bar is not None:
-                    bar.update()
-                if interrupted:
-                    raise KeyboardInterrupt  # between steps, outside emcee's wrapper
+            try:
+                for _ in sampler.sample(start, iterations=steps, store=True):
+                    if bar is not None:
+                        bar.update()
+                    if interrupted:
+                        raise KeyboardInterrupt  # between steps, outside emcee's wrapper
+            except (ValueError, np.linalg.LinAlgError) as exc:
+                if not any(m in str(exc) for m in ("condition number", "lower-dimensional")):
+                    raise
+                raise HosidInputError(COLLAPSED) from None
 
     try:
         while True:
