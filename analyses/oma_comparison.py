@@ -25,6 +25,7 @@ the channels) and ``BLOCK_ROWS`` block rows.
     pip install --no-deps koma-python
     python analyses/oma_comparison.py              # 4 records a case
     python analyses/oma_comparison.py --summary    # the tables from the fits made
+    python analyses/oma_comparison.py --truth      # the truth recomputed, the tables
 """
 
 from __future__ import annotations
@@ -163,17 +164,23 @@ def fdd_row(q: np.ndarray) -> dict:
     return {f"{x}{j}_fdd": float(v[j]) for j in range(2) for x, v in (("f", f), ("z", z))}
 
 
+def truth_modes(s: System, q: np.ndarray, v: np.ndarray) -> dict:
+    r"""``{"small": (f, zeta), "response": (f, zeta)}`` of the true parameters, the latter
+    linearised with the record's own relative displacements and velocities (until
+    2026-11-28 given the velocities' sd, which took a quadratic damping's slope
+    :math:`E|\dot r|^3/E\dot r^2` as :math:`\sigma` instead of :math:`1.60\sigma`)."""
+    B, th, out = s.incidence, s.vector(), {}
+    for kind, slopes in (("small", small_slopes(s)),
+                         ("response", response_slopes(s, B @ q.T, B @ v.T))):  # fmt: skip
+        om, ze, _ = modal_draws(s, th, slopes)
+        out[kind] = (om[0] / (2 * math.pi), ze[0])
+    return out
+
+
 def run_one(case: str, i: int) -> dict:
     """Simulate record ``i`` of ``case``, fit it with hosid and analyse it with SSI and FDD."""
     s, rec, q, v = simulate_case(case, i)
-    B = s.incidence
-    r, rd = B @ q.T, B @ v.T
-    th = s.vector()
-    truth = {}
-    for kind, slopes in (("small", small_slopes(s)),
-                         ("response", response_slopes(s, r, rd.std(axis=1)))):  # fmt: skip
-        om, ze, _ = modal_draws(s, th, slopes)
-        truth[kind] = (om[0] / (2 * math.pi), ze[0])
+    truth = truth_modes(s, q, v)
     f_ssi, z_ssi = ssi_modes(q.T, 0.02, s.n)
     fit_system = System(("x1", "x2"), CASES[case][0])
     tree = hosid.fit(rec, fit_system, seed=i, progress=False)
@@ -294,12 +301,24 @@ def main(argv: Sequence[str] | None = None) -> Path:
     ap.add_argument("--records", type=int, default=4)
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     ap.add_argument("--summary", action="store_true", help="the tables from the fits made")
+    ap.add_argument("--truth", action="store_true",
+                    help="recompute the truth's columns of the rows made (records simulated "
+                    "again), then the tables")  # fmt: skip
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
     path = a.out / "oma_comparison.csv"
     rows = _read(path)
-    if not a.summary:
+    if a.truth:
+        for r in rows:
+            s, _, q, v = simulate_case(r["case"], int(r["record"]))
+            t = truth_modes(s, q, v)
+            for j in range(s.n):
+                r.update({f"f{j}_truth_small": str(t["small"][0][j]), f"f{j}_truth": str(
+                    t["response"][0][j]), f"z{j}_truth_small": str(t["small"][1][j]),
+                    f"z{j}_truth": str(t["response"][1][j])})  # fmt: skip
+        _write(rows, path)
+    elif not a.summary:
         old = [r for r in rows if r.get("f0_fdd") in (None, "")]
         for r in old:  # rows made before FDD was added: their records simulated again
             q = simulate_case(r["case"], int(r["record"]))[2]

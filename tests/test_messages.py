@@ -20,6 +20,7 @@ import pytest
 from hosid import cli
 from hosid.inference.calibrate import HANSEN_P
 from hosid.inference.chains import ChainFile
+from hosid.inference.system_estimate import NOISE_SHARE
 from hosid.model import PAPER_PARAMS, simulate
 from hosid.output.files import locked_dir
 from hosid.record import Record, write_record
@@ -123,4 +124,5 @@ def test_the_readme_quotes_the_thresholds_the_code_uses():
     assert num(rows["channels: duplicate"][3]) == DUPLICATE_CORRELATION
     assert num(rows["channels: resampled"][3]) == HELD_SHARE
     assert num(rows["channels: integration"][3]) == BAND_RISE
+    assert num(rows["sensor_noise"][2]) == NOISE_SHARE
     assert rows["convergence"][2] == f">= {RHAT_MAX} / < {ESS_MIN:.0f}"

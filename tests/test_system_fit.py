@@ -342,3 +342,33 @@ def test_a_five_storey_chain_driven_at_the_roof_from_its_accelerations(tmp_path)
     est = estimate(rec, system)
     got, true = modes(est.model, est.theta).omega, modes(system, values).omega
     np.testing.assert_allclose(got[:2], true[:2], rtol=0.02)
+
+
+@pytest.mark.parametrize("sd", [0.0, 50.0])
+def test_sensor_noise_is_a_verdict(sd):
+    """White noise of a known level on both accelerations of the two-dof chain: the check
+    reads each element's share of noise in its relative displacement and velocity from the
+    channels' floors, a lower bound: the least smoothed ordinate reads a white noise at
+    0.50 and 0.60 of its level on these channels (at 2, 6, 20 and 50 m/s^2 alike), so 0.4-1.1
+    of the share the known noise makes (:func:`noise_shares`); without noise the shares are
+    far below :data:`NOISE_SHARE` and it passes."""
+    from hosid.components.chain_features import BUTTER_NOISE, BUTTER_WALK, noise_shares
+    from hosid.inference.system_estimate import NOISE_SHARE, noise_check
+
+    rec = simulate_chain(LINEAR2, duration=1000.0, dt=DT, rng=np.random.default_rng(6),
+                         measured="acceleration")  # fmt: skip
+    noisy = dataclasses.replace(rec, x=rec.x + sd * np.random.default_rng(7).standard_normal(
+        rec.x.shape))  # fmt: skip
+    state = ChainState.from_record(noisy)
+    (check,) = noise_check(state, LINEAR2)
+    got = noise_shares(state, LINEAR2)
+    if sd == 0.0:
+        assert check.status == "pass" and check.value < 0.1 * NOISE_SHARE
+        return
+    B, N = LINEAR2.incidence, sd**2 * DT / (2 * np.pi)  # two-sided, per rad/s
+    wl = np.array([c.omega_low for c in state.channels])
+    noise = np.stack([2 * N * BUTTER_NOISE / wl**3, 2 * N * BUTTER_WALK / wl])
+    var = np.stack([(B @ state.q).var(axis=1), (B @ state.v).var(axis=1)])
+    true = (B**2 @ noise.T) / var.T
+    assert np.all((0.4 * true < got) & (got < 1.1 * true)), (got, true)
+    assert check.status == "warn" and check.value == pytest.approx(got.max())

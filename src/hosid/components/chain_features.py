@@ -52,12 +52,14 @@ from ..model.system import System
 from ..spectra.derivatives import velocity_deficit
 
 __all__ = [
+    "BUTTER_NOISE",
     "Restoration",
     "column_blocks",
     "dof_columns",
     "force_ffts",
     "lam",
     "low_spectrum",
+    "noise_shares",
     "places",
     "relative",
     "restoration",
@@ -78,6 +80,11 @@ __all__ = [
 BUTTER = 9.0 / 8.0 * (math.pi / 8.0) / math.sin(math.pi / 8.0)
 #: :math:`\int_0^\infty g^2u^{-2}\,du` (:data:`BUTTER`).
 BUTTER_WALK = 7.0 / 8.0 * (math.pi / 8.0) / math.sin(math.pi / 8.0)
+#: :math:`\int_0^\infty g^2u^{-4}\,du = \tfrac58\,\pi/(8\sin(3\pi/8))`: a white
+#: acceleration noise :math:`N` (two-sided) leaves :math:`2N\cdot` this
+#: :math:`/\omega_L^3` in the integrated displacement (and :data:`BUTTER_WALK`
+#: :math:`/\omega_L` in the velocity).
+BUTTER_NOISE = 5.0 / 8.0 * (math.pi / 8.0) / math.sin(3.0 * math.pi / 8.0)
 
 
 def _key(system: System) -> bytes:
@@ -148,6 +155,24 @@ def restoration(
     Sv = (B * s2) @ B.T
     eps = np.maximum(np.sqrt(np.maximum(np.diag(Sv), 0.0)), 0.05 * sd)
     return Restoration(s2, low, Sv, B @ low @ B.T, eps, sd)
+
+
+def noise_shares(state: ChainState, system: System) -> np.ndarray:
+    r"""``(elements, 2)``: the share of each element's relative displacement and velocity
+    variance that its acceleration channels' noise would make, were each channel's floor
+    :math:`F_d` (:func:`hosid.spectra.integrate.acceleration_band`) a white noise:
+    :math:`\sum_dB_{ed}^2\,2F_d\,c/\omega_{L,d}^k` over the variance, with
+    :math:`(c, k)` = (:data:`BUTTER_NOISE`, 3) and (:data:`BUTTER_WALK`, 1).  The floor,
+    the least of many smoothed ordinates, reads a white noise at 0.5-0.6 of its level
+    (``tests/test_system_fit.py``), so the shares are lower bounds where the floor is
+    noise (a record without noise has its floor at the lowest bins, far below).
+    """
+    B = system.incidence
+    floor = np.array([c.band.floor if c.band is not None else 0.0 for c in state.channels])
+    wl = np.array([c.omega_low if c.band is not None else 1.0 for c in state.channels])
+    noise = np.stack([2.0 * floor * BUTTER_NOISE / wl**3, 2.0 * floor * BUTTER_WALK / wl])
+    var = np.stack([(B @ state.q).var(axis=1), (B @ state.v).var(axis=1)])
+    return ((B**2 @ noise.T) / np.maximum(var.T, 1e-300)).astype(float)
 
 
 def _static(state: ChainState, system: System, th: np.ndarray) -> np.ndarray:
