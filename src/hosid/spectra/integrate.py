@@ -29,11 +29,11 @@ first frequency above the floor's :math:`\omega_F` at which
 .. math:: \hat S(\omega) \ge G\,F, \qquad G = 10\ (:data:`BAND_RISE`)
 
 (for one mode the lowest of the run of bins ending at :math:`\omega_a`; a lower mode
-between the floor and the peak is in the band).  A lower mode below the floor's frequency, a local
-peak that rises :math:`G` times above the least ordinate below it, takes the peak's
-place, and so on down: the band starts below the lowest mode that stands out of its floor,
-not in the valley between two modes when a higher one is the larger (a chain's floor
-moving most in its second mode).
+between the floor and the peak is in the band).  A lower mode below the floor's
+frequency, a local peak that rises :math:`G` times above the least ordinate below it,
+takes the peak's place, and so on down: the band starts below the lowest mode that
+stands out of its floor, not in the valley between two modes when a higher one is the
+larger (a chain's floor moving most in its second mode).
 
 Since :math:`N` does not grow with frequency and :math:`N(\omega_F) \le \hat S(\omega_F)
 = F` at the floor's frequency :math:`\omega_F < \omega_L`, every frequency of the band
