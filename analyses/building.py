@@ -97,13 +97,20 @@ def system_file(driven: Sequence[str], equal: bool, path: Path) -> Path:
     return path
 
 
+def sensor_floors(floors) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The floors' Welch frequencies (Hz), spectra ``(5, F)`` and sensor floors (each
+    channel's least ordinate at 0.2-0.45 Hz, below the first mode: its noise)."""
+    f, Q = signal.welch(floors.T, fs=1 / DT, nperseg=NPERSEG)
+    return f, Q, Q[:, (f > 0.2) & (f < 0.45)].min(axis=1)
+
+
 def storeys(floors, ref) -> np.ndarray:
     """``(5, modes)``: each storey's relative acceleration spectrum at each reference mode
-    over its two floors' noise floor (their least Welch ordinates at 0.2-0.45 Hz); near 1
-    the storey's motion is hidden in the sensors' noise."""
+    over its two floors' sensor floors (:func:`sensor_floors`); near 1 the storey's motion
+    is hidden in the sensors' noise."""
     f, P = signal.welch(np.diff(floors, axis=1, prepend=0.0).T, fs=1 / DT, nperseg=NPERSEG)
-    noise = signal.welch(floors.T, fs=1 / DT, nperseg=NPERSEG)[1][:, (f > 0.2) & (f < 0.45)]
-    noise = noise.min(axis=1) + np.r_[0.0, noise.min(axis=1)[:-1]]
+    noise = sensor_floors(floors)[2]
+    noise = noise + np.r_[0.0, noise[:-1]]
     return np.array([P[:, np.argmin(np.abs(f - r["f"]))] / noise for r in ref]).T
 
 
@@ -161,16 +168,15 @@ def twin(ref: list[dict], work: Path, floors) -> list[str]:
     """hosid's estimate on its own 409.6 s simulation of a uniform chain (roof driven,
     stiffness-proportional damping) with the reference's first mode: as simulated, and
     with a white noise on each floor at the building's ratio of that floor's sensor floor
-    (least Welch ordinate at 0.2-0.45 Hz) to its first mode's peak."""
+    (:func:`sensor_floors`) to its first mode's peak."""
     system = hosid.System.from_toml(system_file(["x5"], False, work / "twin.toml"))
     k = (math.pi * ref[0]["f"] / math.sin(math.pi / 22)) ** 2  # w1 = 2 sqrt(k) sin(pi / 22)
     kinds = {"a1": ref[0]["zeta"] * k / (math.pi * ref[0]["f"]), "a2": k, "S0": 1e-3, "ma": 1}
     values = {n: kinds[n[:2]] for n in system.param_names}
     rec = hosid.simulate_chain(system, values, duration=409.6, dt=DT * HOSID_STEP,
                                rng=np.random.default_rng(1), measured="acceleration")  # fmt: skip
-    f, Q = signal.welch(floors.T, fs=1 / DT, nperseg=NPERSEG)
-    peak = np.argmin(np.abs(f - ref[0]["f"]))
-    ratio = Q[:, (f > 0.2) & (f < 0.45)].min(axis=1) / Q[:, peak]
+    f, Q, floor = sensor_floors(floors)
+    ratio = floor / Q[:, np.argmin(np.abs(f - ref[0]["f"]))]
     ft, Qt = signal.welch(rec.x.T, fs=1 / rec.dt, nperseg=NPERSEG // HOSID_STEP)
     sd = np.sqrt(ratio * Qt[:, np.argmin(np.abs(ft - ref[0]["f"]))] / (2 * rec.dt))
     noisy = hosid.Record(rec.x + sd * np.random.default_rng(2).standard_normal(rec.x.shape),
