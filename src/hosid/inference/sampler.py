@@ -198,17 +198,12 @@ def run(
     def advance(start, steps):
         if steps <= 0:
             return
-        with _deferred_interrupt() as interrupted:
-            try:
-                for _ in sampler.sample(start, iterations=steps, store=True):
-                    if bar is not None:
-                        bar.update()
-                    if interrupted:
-                        raise KeyboardInterrupt  # between steps, outside emcee's wrapper
-            except (ValueError, np.linalg.LinAlgError) as exc:
-                if not any(m in str(exc) for m in ("condition number", "lower-dimensional")):
-                    raise
-                raise HosidInputError(COLLAPSED) from None
+        with _deferred_interrupt() as interrupted, _collapsed():
+            for _ in sampler.sample(start, iterations=steps, store=True):
+                if bar is not None:
+                    bar.update()
+                if interrupted:
+                    raise KeyboardInterrupt  # between steps, outside emcee's wrapper
 
     try:
         while True:
@@ -253,6 +248,19 @@ def run(
         acceptance=float(np.mean(sampler.acceptance_fraction)),
         diagnostics=diagnostics(u),
     )
+
+
+@contextmanager
+def _collapsed() -> Iterator[None]:
+    """Walkers on fewer dimensions than the parameters as :data:`COLLAPSED`, one line:
+    emcee's check of the start (its condition number), the KDE move's singular covariance.
+    """
+    try:
+        yield
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        if not any(m in str(exc) for m in ("condition number", "lower-dimensional")):
+            raise
+        raise HosidInputError(COLLAPSED) from None
 
 
 @contextmanager
