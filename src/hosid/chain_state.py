@@ -191,9 +191,6 @@ class ChainState:
             bounds=distinct,
             target_blocks=target_blocks,
         )
-        if margin:  # the blocks where the trimmed segments start (not at sample 0)
-            starts = [a_ + k * layout.M for a_, b in distinct for k in range((b - a_) // layout.M)]
-            layout = BlockLayout(layout.M, len(starts), layout.dt, tuple(starts))
         win = get_window(window)
         channels = [_with_level(c, a[k], layout, win) for k, c in enumerate(channels)]
         return cls(record, q, v, a, tuple(channels), layout, win, centred, repeats)

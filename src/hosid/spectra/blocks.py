@@ -125,7 +125,7 @@ class BlockLayout:
 def blocks_in(bounds, M: int, dt: float) -> BlockLayout:
     """Blocks of ``M`` samples from the start of every segment ``(start, stop)``."""
     starts = [a + k * M for a, b in bounds for k in range((b - a) // M)]
-    if len(bounds) == 1:
+    if len(bounds) == 1 and bounds[0][0] == 0:
         return BlockLayout(M=M, B=len(starts), dt=dt)
     return BlockLayout(M=M, B=len(starts), dt=dt, starts=tuple(starts))
 
