@@ -226,3 +226,24 @@ def test_blocks_stay_inside_segments():
     auto = choose_layout(5600, DT, OMEGA_PAPER, min_blocks=10, bounds=bounds)
     assert (auto.M, auto.B) == (256, 20)  # 512 gives 5 + 0 + 4 = 9
     assert choose_layout(5600, DT, OMEGA_PAPER, min_blocks=10).starts is None
+
+
+def test_a_single_segment_keeps_its_start():
+    lay = choose_layout(5600, DT, OMEGA_PAPER, block_seconds=20.48, min_blocks=4,
+                        bounds=[(300, 5400)])  # fmt: skip
+    np.testing.assert_array_equal(lay.offsets, [300, 1324, 2348, 3372])
+    np.testing.assert_array_equal(lay.take(np.arange(5600.0))[:, 0], lay.offsets)
+
+
+def test_a_smooth_states_blocks_keep_clear_of_the_ends(paper_record):
+    """The jerk's end error (hosid.state module docstring): JERK_MARGIN end fits (an
+    eighth of a period each) at each end hold no block sample.
+    """
+    from hosid.state import JERK_MARGIN
+
+    st = RecordState.from_record(paper_record, smooth=True)
+    n_fit = max(round(2 * math.pi / st.scales.omega_n / DT / 8), 8)
+    first = st.layout.offsets
+    assert first[0] >= JERK_MARGIN * n_fit
+    assert first[-1] + st.layout.M <= paper_record.x.size - JERK_MARGIN * n_fit
+    assert RecordState.from_record(paper_record).layout.offsets[0] == 0
