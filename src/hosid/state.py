@@ -17,10 +17,11 @@ A smooth state (a coloured force) holds the jerk too
 is about its own sd and decays as :math:`1/k` over :math:`k` samples (6 records of the
 ship-roll-like oscillator under a filter at its resonance: 1.2 sd at the end sample,
 3 % at 10-30 samples, 1 % at 30-100).  Its blocks keep :data:`JERK_MARGIN` times the
-end fits' length clear of each end (a segment too short for that keeps its ends).
-Without it the first block's squared influence on the identities of the augmented state
-(:mod:`hosid.components.jets`, boundary terms in the jerk) was 1.6-7 times the mean
-block's, and the last block's 1-2.8 times, over 8 such records.
+end fits' length clear of each end (a segment shorter than the two margins holds no
+block; a record with no longer one keeps its ends).  Without the margin the first
+block's squared influence on the six identities of the augmented state
+(:mod:`hosid.components.jets`, boundary terms in the jerk) was 1.1-7.0 times the mean
+block's over 8 such records (the first identity's: 0.7 with it).
 
 **The velocity above the band.**  A sampled record holds no velocity power above
 :math:`\omega_N`, and its aliases put some back.  For an excitation spectrum
