@@ -242,7 +242,8 @@ def arguments(
 
 def keep_tables(tables: dict[str, Path], work: Path, out: Path) -> dict[str, Path]:
     """The result tables that exist (a model not run yet is left out), merged into
-    ``out``: a run of some cases replaces their rows and keeps the other cases' rows.
+    ``out``: a run of some cases replaces their rows where they stand and keeps the other
+    cases' rows.
     """
     tables = {m: t for m, t in tables.items() if t.is_file()}
     if not tables:
@@ -257,8 +258,8 @@ def keep_tables(tables: dict[str, Path], work: Path, out: Path) -> dict[str, Pat
         if dest.is_file():
             with dest.open(newline="") as fh:
                 old = list(csv.DictReader(fh))
-        fresh = {r["record"] for r in new}
-        rows = [r for r in old if r["record"] not in fresh] + new
+        fresh = {r["record"]: r for r in new}  # in place: the tables keep their order
+        rows = [fresh.pop(r["record"], r) for r in old] + list(fresh.values())
         fields = list(dict.fromkeys([*(new[0] if new else []), *(old[0] if old else [])]))
         with dest.open("w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=fields, lineterminator="\n", extrasaction="ignore")

@@ -82,21 +82,17 @@ import numpy as np
 
 from ..errors import HosidInputError
 from ..inference.calibrate import HANSEN_P
-from ..inference.estimate import estimate, log_params
+from ..inference.estimate import estimate
 from ..inference.gmm import (
     BlockCovariance,
-    Transformed,
     hansen_test,
     j_difference,
-    quasi_likelihood,
-    solve,
 )
-from ..inference.solutions import typical_scale
 from ..model.coordinates import COORDINATES, WHITE_CORNER, Coordinate, critical_z, param_sd
-from ..model.excitation import Spectrum
 from ..model.model import Model, get_term
 from ..record import Record
-from .equations import components_for_test, null_moments, null_theta, record_state
+from .effect_fit import Frame, fits
+from .equations import null_moments
 
 __all__ = [  # the coordinates are re-exported: the evidence is where users look for them
     "COORDINATES",
@@ -217,76 +213,14 @@ def weigh(
     effect = get_term(effect).name
     if effect not in COORDINATES:
         raise HosidInputError(f"{effect} is not a candidate effect")
-    coord = COORDINATES[effect]
-    ext = model.extended(effect)
-    state = record_state(record, ext, states)
-    comps = components_for_test(model, effect)
-    names = ext.param_names
-    i = ext.index(coord.param)
-    support = ext.default_priors(state.scales, constrained=False)
-    lower = np.array([support[n].lower for n in names], dtype=float)
-    upper = np.array([support[n].upper for n in names], dtype=float)
-    lower[i], upper[i] = coord.bounds(support[coord.param].lower, support[coord.param].upper)
-    logs = [k for k in log_params(ext) if k != i]
-
-    def to_theta(u):
-        u = np.asarray(u, dtype=float)
-        th = u.copy()
-        th[..., i] = coord.to_param(u[..., i])
-        return th
-
-    theta = null_theta(ext, coord, start)
-    u = theta.copy()
-    u[i] = 0.0
-    free = [k for k in range(len(names)) if k != i]
-
-    def fixed(v):
-        v = np.asarray(v, dtype=float)
-        return to_theta(np.insert(v, i, 0.0, axis=-1))
-
-    def null_fit(q, start):  # the fit with the effect at its null: (J, free parameters)
-        ql0 = Transformed.of(q, fixed)
-        v = solve(
-            ql0, start, log_params=[free.index(k) for k in logs], scale=0.1 * scale[free],
-            lower=lower[free], upper=upper[free],
-        )  # fmt: skip
-        return float(-2.0 * ql0(v)), v
-
-    rounds = max(int(rounds), coord.rounds)
+    frame = Frame.of(record, model, effect, states)
     try:
-        ql = null = quasi_likelihood(
-            null_moments(record, model, effect, start, states),
-            n_params=len(names),
-            covariance=covariance,
-        )
-        scale = typical_scale(ext, state, to_theta(u))
-        scale[i] = max(abs(u[i]), 1e-3 * (upper[i] - lower[i]))
-        J0, u[free] = null_fit(null, u[free])
-        scale[i] = _own_sd(Transformed.of(null, to_theta), u, i, scale[i])
-        if coord.kind == "inverse_square":  # start coloured, as the fit does
-            u[i] = support[coord.param].upper ** -2.0
-        if Spectrum(ext).whitening or ext.has("rate"):  # the fit's estimate (multi-start
-            # for a filter's peak; the rate piloted by the force's kurtosis)
-            found = estimate(state, ext, comps, settle=False, simulations=0)
-            u, ql, rounds = found.theta.copy(), found.ql, 0
-            u[i] = coord.to_u(found.theta[i])
-            qlu = Transformed.of(ql, to_theta)
-            J0, _ = null_fit(ql, u[free])
-        for _ in range(rounds):
-            if u[i] != 0.0:  # the equations and their weight at the current estimate
-                ql = quasi_likelihood(
-                    [c.prepare(state, ext, to_theta(u)) for c in comps],
-                    n_params=len(names),
-                    covariance=covariance,
-                )
-            qlu = Transformed.of(ql, to_theta)
-            u = solve(qlu, u, log_params=logs, scale=0.1 * scale, lower=lower, upper=upper)
-        if coord.kind == "identity" and ql is not null:  # one weight: the free fit's
-            J0, _ = null_fit(ql, u[free])
+        u, ql, qlu, J0, scale = fits(record, model, frame, start, rounds, states, covariance)
     except ValueError as exc:
         raise HosidInputError(f"{effect}: {exc}") from None
     if not np.all(np.isfinite(u)):
         raise HosidInputError(f"{effect}: the estimating equations have no finite solution")
+    coord, i, names = frame.coord, frame.i, frame.names
     t = hansen_test(float(-2.0 * qlu(u)), ql.k - len(names), ql.info)
     J, df, p_hansen = t["J"], t["df"], t["p_value"]
     disp = max(t["dispersion"], 1.0) if df > 0 and p_hansen < HANSEN_P else 1.0
@@ -295,7 +229,6 @@ def weigh(
     z = float(u[i] / sd_u[i]) if u[i] != 0.0 and sd_u[i] > 0 else 0.0
     test = j_difference(J0, J, df=coord.df, boundary=coord.boundary and coord.df == 1,
                         dispersion=disp)  # fmt: skip
-    theta = to_theta(u)
     sd_theta = dict(zip(names, sd_u.tolist(), strict=True))
     sd_theta[coord.param] = param_sd(coord, float(u[i]), float(sd_u[i]))
     return Evidence(
@@ -308,7 +241,7 @@ def weigh(
         p_value=test["p_value"],
         log_p=test["log_p"],
         reference=test["reference"],
-        estimate=ext.params(theta),
+        estimate=frame.ext.params(frame.to_theta(u)),
         sd=sd_theta,
         hansen={"J": J, "df": df, "p_value": p_hansen},
         dispersion=disp,
@@ -316,22 +249,6 @@ def weigh(
         seconds=time.perf_counter() - t0,
         **({} if covariance is None else {"weight": covariance.source}),
     )
-
-
-def _own_sd(q: Transformed, u: np.ndarray, i: int, fallback: float) -> float:
-    r"""The coordinate's sd from the null equations alone, :math:`1/\|\partial r/\partial
-    u_i\|` (a forward difference from the null): the solver's scale.  A prior's width
-    is no scale for a corner, whose information lives within :math:`10^{-6}` of a
-    coordinate that ranges over :math:`1/\omega_{c,\min}^2`: scaled by the width, the
-    free fit of a corner at 5 sd stayed at the null (``fallback`` when the equations do
-    not move).
-    """
-    h = 1e-6 * fallback
-    step = np.zeros_like(u)
-    step[i] = h
-    with np.errstate(all="ignore"):
-        g = float(np.linalg.norm((q.residual(u + step) - q.residual(u)) / h))
-    return min(fallback, 1.0 / g) if math.isfinite(g) and g > 0 else fallback
 
 
 def screen(
