@@ -247,3 +247,15 @@ def test_a_smooth_states_blocks_keep_clear_of_the_ends(paper_record):
     assert first[0] >= JERK_MARGIN * n_fit
     assert first[-1] + st.layout.M <= paper_record.x.size - JERK_MARGIN * n_fit
     assert RecordState.from_record(paper_record).layout.offsets[0] == 0
+
+
+def test_inner_bounds_cut_the_margin_at_each_end_and_drop_short_segments():
+    """Each kept segment is its segment less ``margin`` samples at either end; a segment
+    of at most two margins is dropped (the smooth state's jerk margin and the integrated
+    accelerations' band margin both use it).
+    """
+    from hosid.spectra.blocks import inner_bounds
+
+    assert inner_bounds([(0, 100), (200, 220), (300, 321)], 10) == [(10, 90), (310, 311)]
+    assert inner_bounds([(0, 20)], 10) == []
+    assert inner_bounds([(5, 50)], 0) == [(5, 50)]

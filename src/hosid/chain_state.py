@@ -60,7 +60,13 @@ import numpy as np
 from .errors import HosidInputError
 from .model.terms import Scales
 from .record import Record
-from .spectra.blocks import BlockLayout, choose_layout, distinct_bounds, windowed_fft
+from .spectra.blocks import (
+    BlockLayout,
+    choose_layout,
+    distinct_bounds,
+    inner_bounds,
+    windowed_fft,
+)
 from .spectra.derivatives import derivatives
 from .spectra.integrate import Band, acceleration_band, integrate_in_time
 from .spectra.response import ResponseSpectrum, response_spectrum
@@ -178,7 +184,7 @@ class ChainState:
         q, v, a = (np.stack([c[k] for c in cols]) for k in range(3))
         margin = max((round(MARGIN * 2 * math.pi / band.omega_low / record.dt)
                       for band, _ in integrated.values()), default=0)  # fmt: skip
-        inner = [(a_ + margin, b - margin) for a_, b in record.bounds if b - a_ > 2 * margin]
+        inner = inner_bounds(record.bounds, margin)
         if not inner:
             raise HosidInputError("the record is too short for its acceleration channels' band")
         distinct, repeats = distinct_bounds(q[0], inner)

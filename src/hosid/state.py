@@ -55,7 +55,14 @@ import numpy as np
 from .errors import HosidInputError
 from .model.terms import Scales
 from .record import Record
-from .spectra.blocks import BlockLayout, block_fft, choose_layout, distinct_bounds, windowed_fft
+from .spectra.blocks import (
+    BlockLayout,
+    block_fft,
+    choose_layout,
+    distinct_bounds,
+    inner_bounds,
+    windowed_fft,
+)
 from .spectra.derivatives import (
     C_ALIAS,
     derivatives,
@@ -151,7 +158,7 @@ class RecordState:
         distinct, repeats = distinct_bounds(xc, record.bounds)
         if smooth:  # blocks clear of the jerk's error at each end (module docstring)
             m = JERK_MARGIN * max(n_fit, 8)
-            distinct = [(a_ + m, b - m) for a_, b in distinct if b - a_ > 2 * m] or distinct
+            distinct = inner_bounds(distinct, m) or distinct
         layout = choose_layout(
             sum(b - a for a, b in distinct),
             record.dt,

@@ -53,6 +53,7 @@ __all__ = [
     "blocks_in",
     "choose_layout",
     "distinct_bounds",
+    "inner_bounds",
     "repeat_lag",
     "windowed_fft",
 ]
@@ -247,6 +248,13 @@ def distinct_bounds(
             out.append((a, b))
             found.append(None)
     return out, found
+
+
+def inner_bounds(bounds: Sequence[tuple[int, int]], margin: int) -> list[tuple[int, int]]:
+    """The segments ``bounds`` less ``margin`` samples at each end; a segment no longer
+    than the two margins is left out (the caller decides what an empty list means).
+    """
+    return [(a + margin, b - margin) for a, b in bounds if b - a > 2 * margin]
 
 
 def block_means(y: np.ndarray, layout: BlockLayout) -> np.ndarray:
