@@ -171,60 +171,18 @@ def run(
         out[:, 0] = np.where(np.isfinite(out[:, 0]), out[:, 0], -np.inf)
         return out
 
-    moves = [
-        (emcee.moves.DEMove(), 0.7 if kde else 0.9),
-        (emcee.moves.DEMove(gamma0=1.0), 0.1),
-    ]
-    if kde:
-        moves.append((emcee.moves.KDEMove(), 0.2))
-    if mirror:
-        moves = [(m, 0.9 * w) for m, w in moves] + [(emcee.moves.MHMove(_mirror(mirror)), 0.1)]
     sampler = emcee.EnsembleSampler(
-        n_walkers, p, target, moves=moves, vectorize=True, backend=backend
+        n_walkers, p, target, moves=_moves(kde, mirror), vectorize=True, backend=backend
     )
     seed = np.random.MT19937(int(rng.integers(2**32)))
     sampler.random_state = np.random.RandomState(seed).get_state()
     state = None
     if sampler.iteration == 0:
         state = _start(target, modes, cov, logs, rng, n_walkers)
-    bar, own = None, False
     total = int(n_steps) if n_steps is not None else None
-    if isinstance(progress, Stages):
-        bar = progress.stage("sampling", total=total, initial=sampler.iteration, unit="step")
-    elif progress:
-        label = progress if isinstance(progress, str) else "sampling"
-        bar, own = progress_bar(label, total=total, initial=sampler.iteration, unit="step"), True
-
-    def advance(start, steps):
-        if steps <= 0:
-            return
-        with _deferred_interrupt() as interrupted, _collapsed():
-            for _ in sampler.sample(start, iterations=steps, store=True):
-                if bar is not None:
-                    bar.update()
-                if interrupted:
-                    raise KeyboardInterrupt  # between steps, outside emcee's wrapper
-
+    bar, own = _progress(progress, total, sampler.iteration)
     try:
-        while True:
-            done = sampler.iteration
-            if n_steps is not None:
-                todo = min(CHUNK, int(n_steps) - done)
-            else:
-                todo = CHUNK if done < max_steps else 0
-            if todo <= 0:
-                break
-            advance(state if state is not None else sampler.get_last_sample(), todo)
-            state = None
-            if hasattr(backend, "save"):
-                backend.save()  # a checkpoint per chunk (hosid.inference.chains)
-            if n_steps is None:
-                done = sampler.iteration
-                burn = _burn(sampler, done)
-                if done - burn >= 50 * _tau_max(sampler, done) and _diagnostics_pass(
-                    np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
-                ):
-                    break
+        _chunks(sampler, state, n_steps, max_steps, backend, bar)
     except KeyboardInterrupt:
         if hasattr(backend, "save") and sampler.iteration > 0:
             backend.save()  # what was sampled is kept for the resume
@@ -248,6 +206,67 @@ def run(
         acceptance=float(np.mean(sampler.acceptance_fraction)),
         diagnostics=diagnostics(u),
     )
+
+
+def _moves(kde: bool, mirror: Sequence[int]) -> list:
+    """The ensemble's moves: differential evolution (and its mode-hopping ``gamma0 = 1``),
+    the KDE move where ``kde``, the mirror move of the damping's sign where ``mirror``.
+    """
+    moves = [
+        (emcee.moves.DEMove(), 0.7 if kde else 0.9),
+        (emcee.moves.DEMove(gamma0=1.0), 0.1),
+    ]
+    if kde:
+        moves.append((emcee.moves.KDEMove(), 0.2))
+    if mirror:
+        moves = [(m, 0.9 * w) for m, w in moves] + [(emcee.moves.MHMove(_mirror(mirror)), 0.1)]
+    return moves
+
+
+def _progress(progress, total: int | None, initial: int):
+    """The sampling's bar and whether :func:`run` owns it (a command's stage is not)."""
+    if isinstance(progress, Stages):
+        return progress.stage("sampling", total=total, initial=initial, unit="step"), False
+    if progress:
+        label = progress if isinstance(progress, str) else "sampling"
+        return progress_bar(label, total=total, initial=initial, unit="step"), True
+    return None, False
+
+
+def _chunks(sampler, state, n_steps, max_steps: int, backend, bar) -> None:
+    """Advance ``sampler`` by chunks of :data:`CHUNK` steps from ``state`` (or where it
+    stopped): ``n_steps`` in all, or until the chain passes its checks (50
+    autocorrelation times after the burn-in and the diagnostics) or reaches
+    ``max_steps``; a checkpoint of a file backend after every chunk.
+    """
+
+    def advance(start, steps):
+        with _deferred_interrupt() as interrupted, _collapsed():
+            for _ in sampler.sample(start, iterations=steps, store=True):
+                if bar is not None:
+                    bar.update()
+                if interrupted:
+                    raise KeyboardInterrupt  # between steps, outside emcee's wrapper
+
+    while True:
+        done = sampler.iteration
+        if n_steps is not None:
+            todo = min(CHUNK, int(n_steps) - done)
+        else:
+            todo = CHUNK if done < max_steps else 0
+        if todo <= 0:
+            return
+        advance(state if state is not None else sampler.get_last_sample(), todo)
+        state = None
+        if hasattr(backend, "save"):
+            backend.save()  # a checkpoint per chunk (hosid.inference.chains)
+        if n_steps is None:
+            done = sampler.iteration
+            burn = _burn(sampler, done)
+            if done - burn >= 50 * _tau_max(sampler, done) and _diagnostics_pass(
+                np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
+            ):
+                return
 
 
 @contextmanager
