@@ -299,22 +299,12 @@ def estimate(
     model, notes = excitation_for(state, model, band_limit=settle)
     asked = components
     components, chain = _components(state, model, components)
-    whitening = Spectrum(model).whitening
     logs = log_params(model)
     lower, upper = bounds(
         model, support, lambda: model.default_priors(state.scales, constrained=False)
     )
 
-    def one(theta0):  # another start may do where one fails (a white filter is degenerate)
-        return solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
-
-    found, failure = solved(_starts(state, model, start, whitening, chain), one)
-    df = hansen(found[0][1], found[0][0])["df"] if found else 0
-    if whitening and start is None and found and not acceptable(found, df):
-        more = whitened_pilots(state, model, initial_theta(state, model), refine=True)
-        found += solved(more, one)[0]
-    if not found:
-        raise failure
+    found, df = _search(state, model, components, start, rounds, (logs, lower, upper), chain)
     theta, ql, theta0 = found[select_solution([(t, q) for t, q, _ in found], df)]
     test = None
     if settle and settled_term(model):
@@ -366,6 +356,33 @@ def _components(state, model: Model, components) -> tuple[list[Component], bool]
         components.append(ForceKurtosis())
     chain = one_element(state, model, components)
     return (chain or components), bool(chain)
+
+
+def _search(state, model: Model, components, start, rounds: int, search, chain: bool):
+    """The solutions ``(theta, ql, start)`` from every start (:func:`_starts`; another
+    start may do where one fails: a white filter is degenerate) and the equations' degrees
+    of freedom; under a shaping filter with no acceptable solution, from the refined
+    pilots too.  ``search``: the log-scaled parameters and the search's bounds.
+
+    Raises
+    ------
+    HosidInputError
+        The first start's failure, when no start gives a solution.
+    """
+    logs, lower, upper = search
+    whitening = Spectrum(model).whitening
+
+    def one(theta0):
+        return solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
+
+    found, failure = solved(_starts(state, model, start, whitening, chain), one)
+    df = hansen(found[0][1], found[0][0])["df"] if found else 0
+    if whitening and start is None and found and not acceptable(found, df):
+        more = whitened_pilots(state, model, initial_theta(state, model), refine=True)
+        found += solved(more, one)[0]
+    if not found:
+        raise failure
+    return found, df
 
 
 def _starts(state, model: Model, start, whitening: bool, chain: bool) -> list[np.ndarray]:
