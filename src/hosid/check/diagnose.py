@@ -340,45 +340,45 @@ def diagnose(
                     except HosidInputError as exc:
                         failed.setdefault(c, str(exc))
                     bar.update()
-            vetoed: dict[str, str] = {}
-            for c in rnd.supported():
-                stage(f"fit + {c} ({posterior})", grow=1)
-                try:
-                    new = check(current.model.extended(c), path_ss, posterior)
-                    why = _veto(current, new, c)
-                except HosidInputError as exc:
-                    why = f"fitting it failed ({exc})"
-                bar.update()
-                if why is None:
-                    steps.append(Step(c, rnd, new, current.total, dict(vetoed)))
-                    remaining.remove(c)
-                    current = new
-                    break
-                vetoed[c] = why
-            rnd.vetoed = vetoed
-            if not steps or steps[-1].round is not rnd:
+            step = _step(rnd, current, check, (path_ss, posterior), stage, bar)
+            if step is None:
                 break
+            steps.append(step)
+            remaining.remove(step.effect)
+            current = step.check
         bar.update(max(0, bar.total - bar.n))
     finally:
         bar.close()
     settings = {
-        "base": base_note,
-        "replicates": int(replicates),
-        "alpha": float(alpha),
-        "threshold": float(threshold),
-        "max_effects": limit,
-        "posterior": posterior,
-        "candidates": cands,
-        "duration": record.duration,
-        "dt": record.dt,
-        "block_seconds": spec.block * spec.dt,
-        "omega_n": spec.omega_n,
-    }
+        "base": base_note, "replicates": int(replicates), "alpha": float(alpha),
+        "threshold": float(threshold), "max_effects": limit, "posterior": posterior,
+        "candidates": cands, "duration": record.duration, "dt": record.dt,
+        "block_seconds": spec.block * spec.dt, "omega_n": spec.omega_n,
+    }  # fmt: skip
     from .report import decision_text
 
     diag = Diagnosis(base_chk, gaps_of, current, "", settings, failed, steps, rounds)
     diag.decision = decision_text(diag)
     return diag
+
+
+def _step(rnd: Round, current: ModelCheck, check, how, stage, bar) -> Step | None:
+    """The round's step: its first supported candidate whose fit (``check(model, *how)``)
+    :func:`_veto` lets pass, or ``None``; the vetoes go to ``rnd.vetoed``.
+    """
+    rnd.vetoed = {}
+    for c in rnd.supported():
+        stage(f"fit + {c} ({how[1]})", grow=1)
+        try:
+            new = check(current.model.extended(c), *how)
+            why = _veto(current, new, c)
+        except HosidInputError as exc:
+            why = f"fitting it failed ({exc})"
+        bar.update()
+        if why is None:
+            return Step(c, rnd, new, current.total, dict(rnd.vetoed))
+        rnd.vetoed[c] = why
+    return None
 
 
 def _base_check(check, model, ss, posterior):
