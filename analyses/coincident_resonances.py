@@ -20,7 +20,11 @@ simulator, or ``--simulator independent``), the default estimate of
 ``paper,narrowband_excitation`` with its Laplace sd (no sampler, no settling), and per
 parameter the mean and sd over records of the z-score (estimate - truth) / sd, then the
 bias of :math:`s`, :math:`p`, :math:`a_2` and :math:`\omega_f^2` in units of their own
-scatter over the records, for each of ``--variants``:
+scatter over the records, and the equations' :math:`J` (minus twice the
+quasi-log-likelihood) at the truth and at the estimate: at the truth a chi-square of
+:math:`k` degrees of freedom where the equations and their weight are right, and
+:math:`J(\theta_0) - J(\hat\theta)` one of :math:`p` (the parameters) where the fit is
+regular; for each of ``--variants``:
 
 - ``default``: the default equations and blocks;
 - ``long_blocks``: blocks twice the default's length (204.8 s at the defaults: 19 blocks,
@@ -44,6 +48,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from scipy import stats
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -78,8 +83,9 @@ def _settings(variant: str, state_T: float):
     return None, None
 
 
-def one(args) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Per variant, the estimate and Laplace sd of one record (``args``: truth, index,
+def one(args) -> dict[str, tuple]:
+    """Per variant, the estimate, its Laplace sd and the equations' :math:`J` at the truth
+    and at the estimate, with their number, of one record (``args``: truth, index,
     settings, variants).
     """
     from independent_sim import simulate
@@ -106,7 +112,8 @@ def one(args) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         est = estimate(
             record, model, components, settle=False, simulations=sims, block_seconds=block_seconds
         )
-        out[v] = (est.theta, np.sqrt(np.diag(est.cov)))
+        J = (-2.0 * float(est.ql(theta)), -2.0 * float(est.ql(est.theta)), est.ql.k)
+        out[v] = (est.theta, np.sqrt(np.diag(est.cov)), J)
     return out
 
 
@@ -127,6 +134,7 @@ def _summary(truth, res, model) -> dict:
     est = np.array([r[0] for r in res])
     sd = np.array([r[1] for r in res])
     z = (est - theta) / sd
+    J0, J1, k = (np.array([r[2][j] for r in res]) for j in range(3))
     a2, w2 = est[:, names.index("a2")], est[:, names.index("wf")] ** 2
     a2_0, w2_0 = theta[names.index("a2")], theta[names.index("wf")] ** 2
     funcs = {
@@ -143,6 +151,9 @@ def _summary(truth, res, model) -> dict:
         "names": names, "z_mean": z.mean(0), "z_sd": z.std(0, ddof=1), "sym": sym,
         "covered": np.mean(np.abs(z) < 1.6449, axis=0),
         "mean_sd": dict(zip(names, sd.mean(0), strict=True)),
+        "J": {"k": int(k[0]), "at truth": J0.mean(), "at estimate": J1.mean(),
+              "difference": (J0 - J1).mean(), "above chi2 0.99": np.mean(
+                  J0 - J1 > stats.chi2.ppf(0.99, len(names)))},
     }  # fmt: skip
 
 
@@ -174,6 +185,15 @@ def write(results: dict, settings: dict, out: Path) -> Path:
         lines += ["", "| quantity | bias / scatter | scatter / truth |", "|---|---|---|"]
         for k, v in result["sym"].items():
             lines.append(f"| {k} | {v['bias/scatter']:+.2f} | {v['scatter/truth']:.4f} |")
+        J, p = result["J"], len(result["names"])
+        lines += [
+            "",
+            f"The equations' J (k = {J['k']}, {p} parameters), mean over the records: at the "
+            f"truth {J['at truth']:.1f} (a chi-square of {J['k']} degrees of freedom: "
+            f"{J['k']}), at the estimate {J['at estimate']:.1f} ({J['k'] - p}); their "
+            f"difference {J['difference']:.1f} ({p} for a regular fit), beyond its "
+            f"chi-square's 99 % point in {J['above chi2 0.99']:.2f} of the records (0.01).",
+        ]
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines) + "\n")
     return out
