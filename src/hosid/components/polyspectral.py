@@ -162,24 +162,7 @@ class J4:
         if self.kind == "A":
             dirs += list(exc.shape_indices)
         G0 = gauss(level(th0))
-        d = np.empty((B, dom.shape[0], len(dirs)), dtype=complex)
-        for a, i in enumerate(dirs):
-            if i < nd:
-                dq_i = dq[:, :, i]
-                dG = 0.0
-                if self.kind == "B":
-                    h = 1e-6 * max(abs(th0[i]), 1e-3)
-                    tp, tm = th0.copy(), th0.copy()
-                    tp[i] += h
-                    tm[i] -= h
-                    dG = (gauss(level(tp)) - gauss(level(tm))) / (2 * h)
-                d[:, :, a] = dq_i - dG
-            else:
-                h = 1e-6 * abs(th0[i])
-                tp, tm = th0.copy(), th0.copy()
-                tp[i] += h
-                tm[i] -= h
-                d[:, :, a] = -(gauss(level(tp)) - gauss(level(tm))) / (2 * h)
+        d = self._directions(dirs, th0, nd, dq, lambda th: gauss(level(th)))
         if self.form == "scaled":
             d = d / _null_variance(k_max, self.domain, state.window.name, L.M)[None, :, None]
         dbar = d.mean(axis=0)
@@ -230,6 +213,25 @@ class J4:
                 "directions": "damping and S0 (J4A) / damping (J4B)",
             },
         )
+
+    def _directions(self, dirs, th0, nd, dq, gaussian) -> np.ndarray:
+        r"""The frozen per-block weights :math:`d_{tbj}` along the directions ``dirs``:
+        a damping coefficient's product derivative ``dq`` less (J4B) the derivative of
+        the Gaussian term ``gaussian(theta)``, the level's and shape's minus that
+        derivative (central differences at the pilot ``th0``).
+        """
+        B, n_t = dq.shape[:2]
+        d = np.empty((B, n_t, len(dirs)), dtype=complex)
+        for a, i in enumerate(dirs):
+            dG = 0.0
+            if i >= nd or self.kind == "B":
+                h = 1e-6 * (abs(th0[i]) if i >= nd else max(abs(th0[i]), 1e-3))
+                tp, tm = th0.copy(), th0.copy()
+                tp[i] += h
+                tm[i] -= h
+                dG = (gaussian(tp) - gaussian(tm)) / (2 * h)
+            d[:, :, a] = (dq[:, :, i] - dG) if i < nd else -dG
+        return d
 
     @staticmethod
     def _gauss_grad(s, absk, delta, pairs, e):
