@@ -95,8 +95,7 @@ def fits(record, model, frame: Frame, start, rounds, states, covariance):
     """
     ext, coord, i, free = frame.ext, frame.coord, frame.i, frame.free
     comps = components_for_test(model, frame.effect)
-    theta = null_theta(ext, coord, start)
-    u = theta.copy()
+    u = null_theta(ext, coord, start).copy()
     u[i] = 0.0
     rounds = max(int(rounds), coord.rounds)
     ql = null = quasi_likelihood(
