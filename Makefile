@@ -45,9 +45,12 @@ lock: $(UV)
 demo: $(STAMP)
 	$(VENV)/bin/hosid demo --out demo-out
 
+# The suite on every core (pytest-xdist), a test file to a worker so that a module's
+# shared fixtures are built once; TEST_WORKERS=0 runs it in this process alone.
+TEST_WORKERS ?= auto
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks analyses
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks analyses
