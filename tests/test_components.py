@@ -221,3 +221,63 @@ def test_null_variance_matches_hann_block_products():
         # sd of a variance estimate of 20 000 products: ~3 % off the planes, ~6 % on them;
         # measured deviations 1.9 %, 5.6 %, 2.0 %, 2.8 %
         assert np.var(p) == pytest.approx(v, rel=0.15)
+
+
+# ------------------------------------------------------------------ force kurtosis
+def _excess(g: np.ndarray) -> float:
+    """The blocks' excess kurtosis of ``g`` ``(B, M)``: the fourth moment less three
+    times the U-statistic of the squared variance, over it.
+    """
+    m2 = (g**2).mean(axis=1)
+    B = m2.size
+    cross = (m2.sum() ** 2 - np.sum(m2**2)) / (B * (B - 1))
+    return float(((g**4).mean() - 3.0 * cross) / cross)
+
+
+def test_force_kurtosis_is_the_excess_kurtosis_in_the_forces_own_scale(paper_state):
+    # away from the pilot too (its weight is the pilot's, its scale the force's own): the
+    # inferred force on the blocks at theta, its excess kurtosis computed directly
+    from hosid.components import ForceKurtosis
+    from hosid.components.base import restoration
+
+    m = ForceKurtosis().prepare(paper_state, PAPER, TRUTH)
+    s2, eps = restoration(paper_state, PAPER, TRUTH)
+    blk = paper_state.blocks
+    phi = [
+        t.smoothed(blk["v"], s2, eps) if t.variable == "v" else t.phi(blk["x"])
+        for t in PAPER.drift_terms
+    ]
+    rng = np.random.default_rng(3)
+    for theta in TRUTH * (1.0 + 0.3 * rng.standard_normal((3, TRUTH.size))):
+        g = blk["a"] + sum(c * f for c, f in zip(theta, phi, strict=False))
+        np.testing.assert_allclose(m.mean(theta)[0], _excess(g), rtol=1e-9)
+
+
+def test_chain_kurtosis_of_a_chain_is_each_dofs_excess_kurtosis():
+    # the chains' path (not the single oscillator's arithmetic): random block features
+    # of each dof of a 2-dof chain, its inferred force X = Y lambda(theta), X's excess
+    # kurtosis directly; the same force in another scale has the same equation
+    from hosid.components.chain_cumulant import _kurtosis
+    from hosid.components.chain_features import lam
+    from hosid.model.system import System
+
+    system = System(
+        ("x1", "x2"),
+        [(("ground", "x1"), ("linear",)), (("x1", "x2"), ("linear",))],
+        values={
+            "a1[ground-x1]": 1.0, "a2[ground-x1]": 25.0, "a1[x1-x2]": 0.5,
+            "a2[x1-x2]": 15.0, "mass[x2]": 0.5, "S0[x1]": 10.0, "S0[x2]": 5.0,
+        },
+    )  # fmt: skip
+    rng = np.random.default_rng(4)
+    th0 = system.vector()
+    for d in range(2):
+        F = lam(system, th0, d).size
+        Y = rng.standard_normal((12, 400, F)) * rng.uniform(0.5, 2.0, F)
+        Y[..., 0] += rng.standard_t(5, (12, 400))  # a non-Gaussian part
+        mean = _kurtosis(Y, system, d, th0)[0]
+        for theta in th0 * (1.0 + 0.3 * rng.standard_normal((2, th0.size))):
+            np.testing.assert_allclose(mean(theta)[0], _excess(Y @ lam(system, theta, d)),
+                                       rtol=1e-9)  # fmt: skip
+        scaled = _kurtosis(2.5 * Y, system, d, th0)[0]
+        np.testing.assert_allclose(scaled(th0), mean(th0), rtol=1e-9)

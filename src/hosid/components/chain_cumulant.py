@@ -6,9 +6,11 @@ when the dof's force is (the paper's :math:`P_{4,dddd} = 0`, eq 34 with indices,
 zero).  Per driven dof, with the block moments :math:`m_{2b} = \overline{X_d^2}` and
 :math:`m_{4b} = \overline{X_d^4}`,
 
-.. math:: \kappa_d(\theta) = \frac{1}{\sigma_d^4}\Big[\frac1B\sum_bm_{4b} -
-    \frac{3}{B(B-1)}\sum_{b\ne b'}m_{2b}m_{2b'}\Big]
+.. math:: \kappa_d(\theta) = \frac{\frac1B\sum_bm_{4b} - 3C_d(\theta)}{C_d(\theta)}, \qquad
+    C_d(\theta) = \frac{1}{B(B-1)}\sum_{b\ne b'}m_{2b}m_{2b'}
 
+(the excess kurtosis in the force's own scale at :math:`\theta`:
+:mod:`hosid.components.cumulant` says why)
 has mean zero (blocks independent), whatever linear filter the sampling applies to the
 force (an acceleration channel's, the derivative of its velocity's samples, included).
 Both moments are polynomials in :math:`\lambda_d`, whose coefficient tensors are computed
@@ -83,10 +85,10 @@ def _kurtosis(Y: np.ndarray, system: System, d: int, th0: np.ndarray):
     pl = places(system)
     single = system.single_names  # the single oscillator's arithmetic, to the last digit
     # a block's second moment is w . v_b (v_b: its moments over the pairs), so the blocks'
-    # cross term is w'(3 H / B(B - 1))w - 3 (w'm)^2 / B(B - 1) with H = sum_b v_b v_b' and
-    # m = sum_b v_b: an evaluation sums over no blocks
+    # cross term is [(w'm)^2 - w'Hw] / B(B - 1) with H = sum_b v_b v_b' and m = sum_b v_b:
+    # an evaluation sums over no blocks
     V = M2[:, first, second]  # (B, P)
-    K = G + 3.0 * (V.T @ V) / (B * (B - 1))
+    VV = V.T @ V
     msum = V.sum(axis=0)
 
     def mean(theta):
@@ -98,10 +100,12 @@ def _kurtosis(Y: np.ndarray, system: System, d: int, th0: np.ndarray):
             per = np.einsum("...i,bij,...j->...b", lm, M2, lm)
             tot = np.einsum("...i,ij,...j->...", lm, M2sum, lm)
             cross = (tot**2 - np.sum(per**2, axis=-1)) / (B * (B - 1))
-            return ((m4 - 3.0 * cross) / sigma4 - 0.0)[..., None]
-        out = np.sum((w @ K) * w, axis=-1) - 3.0 * (w @ msum) ** 2 / (B * (B - 1))
-        return (out / sigma4)[..., None]
+            return ((m4 - 3.0 * cross) / cross)[..., None]
+        square = np.sum((w @ VV) * w, axis=-1)
+        cross = ((w @ msum) ** 2 - square) / (B * (B - 1))
+        return ((np.sum((w @ G) * w, axis=-1) - 3.0 * cross) / cross)[..., None]
 
-    u = ((g0**4).mean(axis=1) - 6.0 * m2b.mean() * m2b) / sigma4
+    m4b = (g0**4).mean(axis=1)
+    u = (m4b - 2.0 * m4b.mean() / m2b.mean() * m2b) / sigma4
     excess = float((g0**4).mean() / (3.0 * m2b.mean() ** 2) - 1.0)
     return mean, (u - u.mean())[:, None], excess, math.sqrt(math.sqrt(sigma4))
