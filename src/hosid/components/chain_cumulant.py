@@ -20,7 +20,6 @@ once.  For the one-element chain this is :class:`hosid.components.cumulant.Force
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +28,7 @@ from ..chain_state import ChainState
 from ..model.system import System
 from .base import Moments
 from .chain_features import column_blocks, dof_columns, lam, places, restoration
+from .cumulant import pilot_force
 
 __all__ = ["ChainKurtosis"]
 
@@ -77,9 +77,6 @@ def _kurtosis(Y: np.ndarray, system: System, d: int, th0: np.ndarray):
     twice = np.array([1.0 if i == j else 2.0 for i, j in pairs])
     first, second = np.array(pairs).T
     lam0 = lam(system, th0, d)
-    g0 = Y @ lam0
-    m2b = (g0**2).mean(axis=1)
-    sigma4 = float(m2b.mean()) ** 2
     M2sum = M2.sum(axis=0)
 
     pl = places(system)
@@ -105,7 +102,4 @@ def _kurtosis(Y: np.ndarray, system: System, d: int, th0: np.ndarray):
         cross = ((w @ msum) ** 2 - square) / (B * (B - 1))
         return ((np.sum((w @ G) * w, axis=-1) - 3.0 * cross) / cross)[..., None]
 
-    m4b = (g0**4).mean(axis=1)
-    u = (m4b - 2.0 * m4b.mean() / m2b.mean() * m2b) / sigma4
-    excess = float((g0**4).mean() / (3.0 * m2b.mean() ** 2) - 1.0)
-    return mean, (u - u.mean())[:, None], excess, math.sqrt(math.sqrt(sigma4))
+    return (mean, *pilot_force(Y @ lam0))

@@ -51,7 +51,7 @@ from ..state import RecordState
 from .base import Moments, restoration
 from .jumps import kink_constants
 
-__all__ = ["ForceKurtosis"]
+__all__ = ["ForceKurtosis", "pilot_force"]
 
 
 @dataclass(frozen=True)
@@ -77,9 +77,7 @@ class ForceKurtosis:
         first, second = np.array(pairs).T
         nd = model.n_drift
         lam0 = np.concatenate([[1.0], np.asarray(pilot, dtype=float)[:nd]])
-        g0 = Y @ lam0  # (B, M)
-        m2b = (g0**2).mean(axis=1)
-        sigma4 = float(m2b.mean()) ** 2
+        influence, excess, sigma = pilot_force(Y @ lam0)
         M2sum = M2.sum(axis=0)
         if model.has("rate"):  # Poisson impulses: 3 (2 pi S0)^2 c4 / (r dt^3) (.jumps)
             i_S0, i_rate = model.index("S0"), model.index("rate")
@@ -102,16 +100,23 @@ class ForceKurtosis:
             cross = (tot**2 - np.sum(per**2, axis=-1)) / (B * (B - 1))
             return ((m4 - 3.0 * cross - impulses(th)) / cross)[..., None]
 
-        # the projection of the ratio's U-statistics on the blocks
-        m4b = (g0**4).mean(axis=1)
-        u = (m4b - 2.0 * m4b.mean() / m2b.mean() * m2b) / sigma4
         return Moments(
             component=self.name,
             labels=("force kurtosis",),
             mean=mean,
-            influence=(u - u.mean())[:, None],
-            info={
-                "excess_kurtosis_at_pilot": float((g0**4).mean() / (3.0 * m2b.mean() ** 2) - 1.0),
-                "sigma": math.sqrt(math.sqrt(sigma4)),
-            },
+            influence=influence,
+            info={"excess_kurtosis_at_pilot": excess, "sigma": sigma},
         )
+
+
+def pilot_force(g0: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """The equation's centred influence ``(B, 1)`` (the projection of the ratio's
+    U-statistics on the blocks, in the pilot's scale), the pilot's excess kurtosis and
+    force sd, from the pilot's inferred force on the blocks ``g0`` ``(B, M)``.
+    """
+    m2b = (g0**2).mean(axis=1)
+    sigma4 = float(m2b.mean()) ** 2
+    m4b = (g0**4).mean(axis=1)
+    u = (m4b - 2.0 * m4b.mean() / m2b.mean() * m2b) / sigma4
+    excess = float((g0**4).mean() / (3.0 * m2b.mean() ** 2) - 1.0)
+    return (u - u.mean())[:, None], excess, math.sqrt(math.sqrt(sigma4))
