@@ -4,6 +4,7 @@ record, the identities of the augmented state, the simulator and the estimate.
 
 import importlib
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -12,10 +13,13 @@ from scipy import signal
 from hosid.check.evidence import weigh
 from hosid.components.identities import Identities
 from hosid.components.jets import time_derivatives
+from hosid.components.polyspectral import J4
 from hosid.errors import HosidInputError
 from hosid.inference.estimate import estimate, prepare_state
+from hosid.inference.gmm import quasi_likelihood
 from hosid.inference.pilot import initial_theta, whitened_pilots
 from hosid.inference.solutions import select_solution
+from hosid.inference.swap import FLOOR, swap_guard
 from hosid.model import Model
 from hosid.model.excitation import Spectrum, squared_modulus
 from hosid.model.simulate import narrowband_shape, simulate
@@ -194,19 +198,46 @@ def test_whitened_identities_are_scaled_by_their_own_covariance_at_theta():
     np.testing.assert_allclose(m0.mean(np.stack([th0, th1]))[1], m0.mean(th1), rtol=1e-10)
 
 
-def test_estimate_with_the_matching_filter():
+MATCHING = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
+
+
+@pytest.fixture(scope="module")
+def matching_estimate():
+    rec = simulate(MATCHING, duration=2000.0, dt=0.02, rng=np.random.default_rng(11))
+    return estimate(rec, NB)
+
+
+def test_estimate_with_the_matching_filter(matching_estimate):
     """One record of the paper oscillator under a filter peaked just above its resonance
     (the white model gets a1 < 0 there): every parameter within 3.5 of its sd.
     """
-    truth = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
-    rec = simulate(truth, duration=2000.0, dt=0.02, rng=np.random.default_rng(11))
-    est = estimate(rec, NB)
+    truth, est = MATCHING, matching_estimate
     for k, v in truth.items():
         assert abs(est.values[k] - v) < 3.5 * est.sd[k], k
     assert est.test["p_value"] > 0.001
     # weighed with the covariance of 8 records simulated at the estimate (same blocks)
     assert est.ql.info["covariance_dof"] == 8 * (est.ql.B - 1)
     assert any("simulated at the estimate" in n for n in est.notes)
+
+
+def test_the_swap_guard_admits_the_estimate_and_cuts_where_j4b_rejects(matching_estimate):
+    """The guard is J4B's term, weights frozen at the estimate, above the floor: the
+    estimate is inside, and along a2 (where J4B's term, computed here directly, falls to
+    -1700 and -3700 at 40 sd) it cuts where that term crosses the floor, on both sides;
+    a white model has no guard.
+    """
+    est = matching_estimate
+    guard = swap_guard(est)
+    assert guard is not None and guard(est.theta[None])[0]
+    term = quasi_likelihood(
+        [J4(kind="B").prepare(est.state, est.model, est.theta)], n_params=len(est.theta)
+    )
+    line = np.repeat(est.theta[None], 41, axis=0)
+    line[:, 2] = est.theta[2] + np.linspace(-40.0, 40.0, 41) * est.sd["a2"]
+    inside = guard(line)
+    np.testing.assert_array_equal(inside, term(line) > FLOOR)
+    assert inside[20] and not inside[0] and not inside[-1]
+    assert swap_guard(SimpleNamespace(model=Model.from_spec("paper"))) is None
 
 
 def test_solution_kept_is_the_best_one_no_acceptable_weight_rejects():

@@ -11,10 +11,11 @@ priors, sampled by emcee:
 where :math:`\ell_{cal}` is the components' quasi-log-likelihood after calibration
 (:mod:`hosid.inference.calibrate`) and :math:`\pi` the priors, with the eq-65
 constraint :math:`a_{1eq} > 0` on every draw (per damped element of a system) unless
-``constrained=False``.  The settings and their defaults are
-:class:`hosid.inference.options.FitOptions`; what differs between a model and a system
-is :mod:`hosid.inference.structure`.  The result is one arviz ``DataTree``
-(:mod:`hosid.output.results`).
+``constrained=False``; under a second-order shaping filter the draws stay on the
+estimate's side of the filter's swap with the oscillator (:mod:`hosid.inference.swap`).
+The settings and their defaults are :class:`hosid.inference.options.FitOptions`; what
+differs between a model and a system is :mod:`hosid.inference.structure`.  The result is
+one arviz ``DataTree`` (:mod:`hosid.output.results`).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from .calibrate import calibrate
 from .chains import ChainFile
 from .estimate import components_for, estimate, likelihood_map, log_params
 from .options import FitOptions
+from .swap import swap_guard
 
 __all__ = ["FitOptions", "fit"]
 
@@ -162,10 +164,16 @@ def _sample(record: Record, est, cal, priors, o: FitOptions, cost):
     comp_names = list(est.ql.slices)
     rng = _rng(o.seed)
 
+    guard = swap_guard(est)  # a shaping filter: the estimate's side of the swap
+    if guard is not None and not guard(cal.theta[None])[0]:
+        guard = None  # the calibrated mode itself outside: no side to keep
+
     def log_prob(theta):
         lp = priors.ln_prob(theta)
         out = np.full((theta.shape[0], 2 + len(comp_names)), -np.inf)
         ok = np.isfinite(lp)
+        if guard is not None and ok.any():
+            ok[ok] = guard(theta[ok])
         out[:, -1] = lp
         if ok.any():
             parts = cal.by_component(theta[ok])
