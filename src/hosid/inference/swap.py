@@ -20,9 +20,10 @@ few samples), so it is not what hosid uses.
 
 The inferred force's trispectrum against the Gaussian one of its own spectrum (J4B,
 :mod:`hosid.components.polyspectral`, eqs 62-63) sees the swap from the right side: with
-its weights frozen at a solution on the truth's side, its term (its quasi-log-likelihood
-alone) was -912 at the swapped solution and -0.3 to -1.6 at the truth; frozen at the
-swapped solution it does not see the truth (-0.0).  As equations of the fit it is
+its weights frozen at the truth, its term (its quasi-log-likelihood alone) was -912 at
+the swapped solution of ``ship_at_broad-2``, and frozen at the estimates on the truth's
+side of three other records it was -0.3 to -1.6 at the truth; frozen at the swapped
+solution it does not see the truth (-0.0).  As equations of the fit it is
 biased where the filter is as narrow as the resonance (the ship-roll-like oscillator
 under a filter at its resonance with :math:`\zeta_f = 0.1`: with J4B among the
 equations ``a2`` moved 4-6 bound-sd low in 6 of 10 records), and its term at the truth
