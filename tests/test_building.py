@@ -83,8 +83,9 @@ def test_quick_run_writes_the_three_methods(run):
     assert any(r["method"].startswith("hosid") for r in rows) == any(
         "matched" in f for f in res["hosid"]
     )
-    clean, noisy = res["control"][1:]  # the twin as simulated and with the sensors' noise
+    clean, noisy, modelled = res["control"][1:]  # as simulated, with the sensors' noise
     assert clean.startswith("estimated modes [0.52")  # its first mode, 0.528 Hz, recovered
     assert noisy.startswith(("estimated modes", "the estimate fails"))
+    assert modelled.startswith("estimated modes [0.52")  # the noise modelled: recovered
     assert (out / "building.png").stat().st_size > 0
     assert (out / "work" / "floors.npz").is_file()

@@ -264,7 +264,8 @@ def locate(
             states[centred(s)] = system_state(record, s, block_seconds=block_seconds)
         return states[centred(s)]
 
-    current = system
+    # the candidates are nonlinear, whose fits keep the identities: so does the base
+    current = system if system.sensor_noise is not None else replace(system, sensor_noise=False)
     est = estimate_system(state_of(current), current)
     rounds: list[Round] = []
     while True:

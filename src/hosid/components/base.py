@@ -59,6 +59,10 @@ class Moments:
         jackknife pseudo-values of a U-statistic (:func:`u_pseudovalues`).
     info : dict
         What the component used (band, domain, ...), for the report.
+    covariance : ndarray, shape (k, k), optional
+        One block's covariance of the equations from the component's own model, when it
+        knows it better than its influence's spread does (the quasi-likelihood then uses
+        it, :func:`hosid.inference.gmm.quasi_likelihood`).
     """
 
     component: str
@@ -66,6 +70,7 @@ class Moments:
     mean: Callable[[np.ndarray], np.ndarray]
     influence: np.ndarray
     info: dict = field(default_factory=dict)
+    covariance: np.ndarray | None = None
 
     @property
     def k(self) -> int:

@@ -106,7 +106,8 @@ def fit(
     elif isinstance(structure, System):
         from .system_estimate import system_components
 
-        comps = system_components(o.cost)
+        system_components(o.cost)  # a cost other than the default is refused
+        comps = None  # the estimate chooses: the record may call for the sensors' noise
     else:
         band = None if o.omega_max is None else (0.0, float(o.omega_max))
         comps = components_for(o.cost, band=band, form=o.form, domain=o.domain)

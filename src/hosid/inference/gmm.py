@@ -70,6 +70,9 @@ __all__ = [
     "weight_factor",
 ]
 
+#: The degrees of freedom given a covariance the components know from their model (the
+#: weight's Wishart factor then 1 to six digits).
+MODEL_DOF = 10**7
 #: Hansen p-value below which the equations disagree beyond chance: the quasi-likelihood
 #: is widened by its dispersion (:mod:`hosid.inference.calibrate`).
 HANSEN_P = 0.01
@@ -237,8 +240,10 @@ def quasi_likelihood(
     covariance: BlockCovariance | None = None,
 ) -> QuasiLikelihood:
     r"""Stack ``moments`` and weight them with the inverse influence covariance: the
-    record's own (:math:`\hat\Sigma` of its :math:`B` blocks) or, when given, a
-    ``covariance`` of the same equations estimated elsewhere (:class:`BlockCovariance`).
+    record's own (:math:`\hat\Sigma` of its :math:`B` blocks), the components' own model
+    of it when every one gives it (:attr:`hosid.components.base.Moments.covariance`, taken
+    as exact: :data:`MODEL_DOF`), or, when given, a ``covariance`` of the same equations
+    estimated elsewhere (:class:`BlockCovariance`).
 
     Raises
     ------
@@ -252,6 +257,8 @@ def quasi_likelihood(
     if B <= k + 2:
         raise ValueError(f"{B} blocks are too few for {k} estimating equations")
     S, dof = U.T @ U / (B - 1), B - 1
+    if covariance is None and all(m.covariance is not None for m in moments):
+        S, dof = linalg.block_diag(*(m.covariance for m in moments)), MODEL_DOF
     if covariance is not None:
         labels = tuple(lab for m in moments for lab in m.labels)
         if covariance.labels != labels:

@@ -23,6 +23,14 @@ cumulant (:class:`~hosid.components.chain_cumulant.ChainKurtosis`).  For the one
 chain they give the single oscillator's equations to the last digit, and the estimate is
 the single oscillator's default estimate (``tests/test_system_fit.py``).
 
+**Sensor noise.**  A linear system whose channels are accelerations with their own white
+noise (``sensor_noise = true``, or not given and the ``sensor_noise`` check warning:
+:func:`with_sensor_noise`) has the channels' spectral matrix as its one component
+(:class:`~hosid.components.chain_spectral_matrix.ChainSpectralMatrix`, Whittle's score):
+the identities, moments of the twice-integrated channels, are biased by the noise, and for
+a linear Gaussian system the spectral matrix holds all the information.  Its pilot is
+Whittle's maximum (:func:`~hosid.components.chain_spectral_matrix.spectral_pilot`).
+
 **Blocks.**  A system of several dofs has many equations for its blocks: :math:`k = 28`
 for the three-dof chain of ``analyses/chain_study.py``, whose 2000 s records the single
 oscillator's rule (16 periods of the slowest resonance) cut into 48 blocks.  The
@@ -40,6 +48,7 @@ and 90 % coverage 0.94, 0.88 and 0.91; on 30 of the two-dof chain's acceleration
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -49,6 +58,11 @@ from ..components.chain_cumulant import ChainKurtosis
 from ..components.chain_features import noise_shares, restoration, system_scales
 from ..components.chain_identities import ChainIdentities, rows
 from ..components.chain_spectral import ChainJ2, ChainLevel
+from ..components.chain_spectral_matrix import (
+    ChainSpectralMatrix,
+    check_noise_model,
+    spectral_pilot,
+)
 from ..errors import HosidInputError
 from ..model.system import System
 from ..record import Record
@@ -73,8 +87,10 @@ __all__ = [
 BLOCKS_PER_EQUATION = 6
 
 
-def system_components(cost: str | None = None) -> list:
-    """The components of a system's fit (module docstring).
+def system_components(cost: str | None = None, system: System | None = None) -> list:
+    """The components of a system's fit (module docstring); for a system with sensor
+    noise, the channels' spectral matrix alone
+    (:mod:`hosid.components.chain_spectral_matrix`).
 
     Raises
     ------
@@ -87,6 +103,8 @@ def system_components(cost: str | None = None) -> list:
             f"a system is fitted with the default components; cost {cost!r} is the single "
             "oscillator's (give --model with term names for it)"
         )
+    if system is not None and system.sensor_noise:
+        return [ChainSpectralMatrix()]
     return [ChainIdentities(), ChainJ2(), ChainLevel(), ChainKurtosis()]
 
 
@@ -151,14 +169,35 @@ def noise_check(state: ChainState, system: System) -> list[Check]:
     e, k = np.unravel_index(int(np.argmax(share)), share.shape)
     worst, what = float(share[e, k]), ("displacement", "velocity")[k]
     where = f"element {system.elements[e].label}'s relative {what}"
+    if system.sensor_noise:
+        return [Check("sensor_noise", "pass", worst, f"modelled (N per channel): the floors "
+                      f"make at least {100 * worst:.2g} % of {where} variance")]  # fmt: skip
     if worst < NOISE_SHARE:
         return [Check("sensor_noise", "pass", worst, f"the acceleration channels' floors make "
                       f"at most {100 * worst:.2g} % of {where} variance")]  # fmt: skip
     many = int(np.sum(share.max(axis=1) >= NOISE_SHARE))
     return [Check("sensor_noise", "warn", worst, f"the acceleration channels' floors make at "
                   f"least {100 * worst:.2g} % of {where} variance (sensor noise; {many} of "
-                  f"{share.shape[0]} elements at 5 % or more): its coefficients are biased "
+                  f"{share.shape[0]} elements at 5 % or more; a linear system can model it: "
+                  "sensor_noise = true): its coefficients are biased "
                   "towards zero")]  # fmt: skip
+
+
+def with_sensor_noise(state: ChainState, system: System, checks: list) -> tuple[System, list]:
+    """``system`` with every channel's sensor noise modelled (``sensor_noise = true``) when
+    its file leaves that to the record (not given), the ``sensor_noise`` check warns, and
+    the channels' spectral matrix holds for it (a linear system of accelerations:
+    :func:`hosid.components.chain_spectral_matrix.check_noise_model`); else as given.
+    """
+    warned = any(c.name == "sensor_noise" and c.status == "warn" for c in checks)
+    if system.sensor_noise is not None or not warned:
+        return system, checks
+    noisy = dataclasses.replace(system, sensor_noise=True)
+    try:
+        check_noise_model(noisy, state)
+    except HosidInputError:
+        return system, checks
+    return noisy, [c for c in checks if c.name != "sensor_noise"] + noise_check(state, noisy)
 
 
 def estimate_system(
@@ -195,13 +234,17 @@ def estimate_system(
         state = system_state(record, system, block_seconds=block_seconds)
     if state.n > 1 and not any(c.name == "sensor_noise" for c in checks):
         checks = [*checks, *noise_check(state, system)]
-    components = list(components or system_components())
-    theta0 = np.array(start, dtype=float) if start is not None else chain_pilot(state, system)
+    if components is None:
+        system, checks = with_sensor_noise(state, system, checks)
+    components = list(components or system_components(system=system))
     lower, upper = bounds(
         system,
         support,
         lambda: system.default_priors(system_scales(state, system), constrained=False),
     )
+    theta0 = np.array(start, dtype=float) if start is not None else chain_pilot(state, system)
+    if start is None and system.sensor_noise:
+        theta0 = spectral_pilot(state, system, theta0, lower, upper)
     logs = system.log_params
     theta, ql = solve_rounds(state, system, components, theta0, rounds, logs, lower, upper)
     J_best = float(-2.0 * ql(theta))

@@ -209,7 +209,9 @@ def simulate_chain(
     ----------
     system : System
     values : mapping or vector, optional
-        The parameters (default the system's own ``values``, all needed).
+        The parameters (default the system's own ``values``, all needed); a sensor noise
+        level ``N[dof]`` adds a white noise of variance :math:`2\pi N/\Delta t` to the
+        channel.
     duration, dt : float
         Record length and sampling interval (s).
     rng : numpy.random.Generator
@@ -268,6 +270,9 @@ def simulate_chain(
         for d, kind in enumerate(kinds):
             if kind == "acceleration":
                 x[:, d] = acc[:, d]
+    noise = system.noise_levels(th)  # each channel's sensor noise, after the motion's draws
+    if np.any(noise > 0):
+        x = x + rng.standard_normal(x.shape) * np.sqrt(2.0 * math.pi * noise / dt)
     record = Record(x, float(dt), name, channels=system.dofs, measured=kinds)
     return (record, qs, vs) if return_state else record
 

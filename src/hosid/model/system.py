@@ -36,8 +36,10 @@ fixes them.
 
 Parameter layout (:attr:`System.param_names`, the one place): every element's
 coefficients (elements in order, terms in the library's order), then the unknown
-masses, then the levels of the driven degrees of freedom, each named with its place:
-``a1[ground-x1]``, ``n2[x1-x2]``, ``mass[x2]``, ``S0[x1]``.  :meth:`System.single`
+masses, then the levels of the driven degrees of freedom, then those of the channels'
+sensor noises (white, two-sided, :math:`N_d`, added to what channel :math:`d` measures),
+each named with its place: ``a1[ground-x1]``, ``n2[x1-x2]``, ``mass[x2]``, ``S0[x1]``,
+``N[x1]``.  :meth:`System.single`
 names the one-element chain's parameters as :class:`hosid.model.Model` does (``a1``,
 ``n1``, ``a2``, ``n2``, ``S0``).  Files: :mod:`hosid.model.system_file`; the linear
 chain's matrices and modes: :mod:`hosid.model.linear_chain`.
@@ -45,8 +47,6 @@ chain's matrices and modes: :mod:`hosid.model.linear_chain`.
 
 from __future__ import annotations
 
-import math
-import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -63,7 +63,9 @@ from .system_file import (
     check_element,
     check_masses,
     check_measured,
+    check_sensor_noise,
     check_topology,
+    check_values,
     read_system,
 )
 from .terms import DriftTerm
@@ -106,6 +108,9 @@ class System:
     measured : str or mapping, optional
         ``"displacement"`` or ``"acceleration"``, for all channels or by dof; stored as
         one kind or ``None`` (undeclared: the record's file says) a dof.
+    sensor_noise : bool or sequence of str, optional
+        The dofs whose channels carry a white noise of unknown level ``N[dof]``; not given
+        (``None``), a fit models it where a linear system's accelerations need it.
     values : mapping, optional
         Parameter values by name (a simulation's truth); stored as ``(name, value)``
         pairs in :attr:`param_names` order (``dict(system.values)``).
@@ -132,6 +137,7 @@ class System:
     masses: Mapping[str, float] | tuple = ()
     driven: tuple[str, ...] = ()
     measured: str | Mapping[str, str] | tuple = ()
+    sensor_noise: bool | tuple | None = None
     values: Mapping[str, float] | tuple = ()
     single_names: bool = False
 
@@ -151,19 +157,10 @@ class System:
         set_(self, "masses", known)
         set_(self, "driven", driven)
         set_(self, "measured", measured)
+        set_(self, "sensor_noise", check_sensor_noise(self.sensor_noise, dofs))
         if self.single_names and (len(dofs) != 1 or len(elements) != 1):
             raise HosidInputError("plain parameter names are for the one-element chain only")
-        values = dict(self.values)
-        unknown = [k for k in values if k not in self.param_names]
-        if unknown:
-            raise HosidInputError(
-                f"values: unknown parameter {unknown[0]!r}; parameters: "
-                f"{', '.join(self.param_names)}"
-            )
-        for k, v in values.items():
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
-                raise HosidInputError(f"values: {k} must be a finite number, got {v!r}")
-        set_(self, "values", tuple((k, float(values[k])) for k in self.param_names if k in values))
+        set_(self, "values", check_values(dict(self.values), self.param_names))
 
     # ---------------------------------------------------------------- builders
     @classmethod
@@ -230,7 +227,8 @@ class System:
             return (*(t.params[0] for _, t in self.columns), "S0")
         drift = [f"{t.params[0]}[{self.elements[k].label}]" for k, t in self.columns]
         masses = [f"mass[{d}]" for d, m in zip(self.dofs, self.masses, strict=True) if m is None]
-        return (*drift, *masses, *(f"S0[{d}]" for d in self.driven))
+        noise = (f"N[{d}]" for d in self.sensor_noise or ())
+        return (*drift, *masses, *(f"S0[{d}]" for d in self.driven), *noise)
 
     def index(self, name: str) -> int:
         """Position of parameter ``name`` in ``theta``."""
@@ -243,7 +241,7 @@ class System:
     @property
     def log_params(self) -> list[int]:
         """Parameters handled in their logarithm: the unknown masses and the levels."""
-        return [i for i, n in enumerate(self.param_names) if n.startswith(("mass[", "S0"))]
+        return [i for i, n in enumerate(self.param_names) if n.startswith(("mass[", "S0", "N["))]
 
     def default_priors(self, scales, *, constrained: bool = True):
         """Every parameter's default prior from the record's
@@ -260,7 +258,9 @@ class System:
                     for e in self.elements]  # fmt: skip
         masses = dict(zip(self.dofs, self.masses, strict=True))
         return {"dofs": list(self.dofs), "elements": elements, "masses": masses,
-                "driven": list(self.driven), "measured": self.declared}  # fmt: skip
+                "driven": list(self.driven), "measured": self.declared,
+                "sensor_noise": None if self.sensor_noise is None
+                else list(self.sensor_noise)}  # fmt: skip
 
     @property
     def incidence(self) -> np.ndarray:
@@ -323,24 +323,24 @@ class System:
 
     def mass_vector(self, theta) -> np.ndarray:
         """:math:`m`, ``(..., n)``: known masses and those of ``theta`` (``(..., p)``)."""
-        th = self.vector(theta)
-        out = np.empty((*th.shape[:-1], self.n))
-        k = self.n_drift
-        for d, m in enumerate(self.masses):
-            if m is None:
-                out[..., d] = th[..., k]
-                k += 1
-            else:
-                out[..., d] = m
-        return out
+        free = tuple(d for d, m in zip(self.dofs, self.masses, strict=True) if m is None)
+        known = np.array([0.0 if m is None else m for m in self.masses])
+        return known + self._by_dof(self.vector(theta), free, "mass")
 
     def levels(self, theta) -> np.ndarray:
         r""":math:`S_{0,d}`, ``(..., n)``: 0 on the dofs without a force."""
-        th = self.vector(theta)
+        return self._by_dof(self.vector(theta), self.driven, "S0")
+
+    def noise_levels(self, theta) -> np.ndarray:
+        r""":math:`N_d`, ``(..., n)``: 0 on the channels without a sensor noise."""
+        return self._by_dof(self.vector(theta), self.sensor_noise or (), "N")
+
+    def _by_dof(self, th: np.ndarray, dofs: tuple[str, ...], kind: str) -> np.ndarray:
         out = np.zeros((*th.shape[:-1], self.n))
-        start = len(self.param_names) - len(self.driven)
-        for k, d in enumerate(self.driven):
-            out[..., self.dofs.index(d)] = th[..., start + k]
+        names = self.param_names
+        for d in dofs:
+            name = kind if self.single_names else f"{kind}[{d}]"
+            out[..., self.dofs.index(d)] = th[..., names.index(name)]
         return out
 
     # --------------------------------------------------------------- equations

@@ -9,6 +9,9 @@ library (:mod:`hosid.model.system` for the equations):
     dofs = ["x1", "x2"]
     driven = ["x2"]                  # optional: the dofs with a white force (default all)
     measured = "acceleration"        # optional: or a table by dof (default displacement)
+    sensor_noise = true              # optional: each channel's white noise level N[dof]
+                                     # a parameter (or a list of dofs; default: when a
+                                     # linear system's accelerations need it)
 
     [[element]]
     between = ["ground", "x1"]
@@ -57,7 +60,7 @@ MEASURED_KINDS = MEASURED
 #: Names a degree of freedom may not take (the ground, a record file's other columns).
 RESERVED = (GROUND, "t", "dt", "segment", "dofs", "measured")
 #: The keys of a system file and of one of its elements.
-KEYS = ("dofs", "element", "masses", "driven", "measured", "values")
+KEYS = ("dofs", "element", "masses", "driven", "measured", "sensor_noise", "values")
 ELEMENT_KEYS = ("between", "terms")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -203,6 +206,36 @@ def check_driven(driven: Any, dofs: Sequence[str]) -> tuple[str, ...]:
     return tuple(d for d in dofs if d in driven) if len(driven) else tuple(dofs)
 
 
+def check_sensor_noise(noise: Any, dofs: Sequence[str]) -> tuple[str, ...] | None:
+    """The dofs whose channels carry a white sensor noise of their own level (a parameter
+    ``N[dof]``), in dof order: ``true`` for all, ``false`` or empty for none, or a list;
+    ``None`` (not given) leaves it to the record (:mod:`hosid.inference.system_estimate`).
+    """
+    if noise is None:
+        return None
+    if isinstance(noise, bool):
+        return tuple(dofs) if noise else ()
+    if isinstance(noise, str) or not isinstance(noise, Sequence):
+        raise HosidInputError("sensor_noise must be true, false or a list of degrees of freedom")
+    for d in noise:
+        if d not in dofs:
+            raise HosidInputError(f"sensor_noise: unknown degree of freedom {d!r}")
+    return tuple(d for d in dofs if d in noise)
+
+
+def check_values(values: Mapping, names: Sequence[str]) -> tuple[tuple[str, float], ...]:
+    """Parameter values by name as ``(name, value)`` pairs in ``names`` order."""
+    unknown = [k for k in values if k not in names]
+    if unknown:
+        raise HosidInputError(
+            f"values: unknown parameter {unknown[0]!r}; parameters: {', '.join(names)}"
+        )
+    for k, v in values.items():
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+            raise HosidInputError(f"values: {k} must be a finite number, got {v!r}")
+    return tuple((k, float(values[k])) for k in names if k in values)
+
+
 def check_measured(measured: Any, dofs: Sequence[str]) -> tuple[str | None, ...]:
     """What each channel measures as declared: one kind for all, a mapping by dof, or a
     tuple; ``None`` for a dof the declaration does not name (undeclared: a record's file
@@ -267,6 +300,7 @@ def system_from_dict(data: Mapping[str, Any], source: str = "") -> System:
             masses=data.get("masses", {}),
             driven=data.get("driven", ()),
             measured=data.get("measured", ()),
+            sensor_noise=data.get("sensor_noise"),
             values=data.get("values", {}),
         )
     except HosidInputError as exc:

@@ -13,7 +13,9 @@ log-uniform on :math:`[10^{-2}, 10^2]` (the first dof's mass is 1), and a driven
 level :math:`S_{0,d}` log-uniform over four decades each side of its acceleration's
 rough level times the square of its known mass (two decades, as the single oscillator's,
 when the mass is known; a factor :math:`10^2` more each side when it is not, which the
-mass's range needs).
+mass's range needs).  A channel's sensor noise level :math:`N_d` is log-uniform from
+:math:`10^{-8}` to :math:`10^2` times its acceleration's rough level (a noise may hide
+all of a dof's motion, or hardly any).
 
 Eq (65) holds per element: with the restored sd :math:`\sigma_{\dot r_e}` of its relative
 velocity, :math:`a_{1eq,e} = a_{1,e} + n_{1,e}\sqrt{8/\pi}\,\sigma_{\dot r_e} + \mu_e
@@ -35,10 +37,12 @@ from .terms import Scales
 if TYPE_CHECKING:  # pragma: no cover
     from .system import System
 
-__all__ = ["MASS_RANGE", "SystemScales", "equivalent_damping", "system_priors"]
+__all__ = ["MASS_RANGE", "NOISE_RANGE", "SystemScales", "equivalent_damping", "system_priors"]
 
 #: The support of an unknown mass (the first dof's mass is 1).
 MASS_RANGE = (1e-2, 1e2)
+#: The support of a sensor noise level, in units of its channel's rough level.
+NOISE_RANGE = (1e-8, 1e2)
 
 
 @dataclass(frozen=True)
@@ -102,6 +106,9 @@ def system_priors(system: System, scales: SystemScales, *, constrained: bool = T
         base = scales.levels[k] * (masses[k] ** 2 if known else 1.0)
         wide = 1e2 if known else 1e4
         priors[next(names)] = LogUniform(base / wide, wide * base)
+    for d in system.sensor_noise or ():
+        level = scales.levels[system.dofs.index(d)]
+        priors[next(names)] = LogUniform(NOISE_RANGE[0] * level, NOISE_RANGE[1] * level)
     constraints = {}
     if constrained:
         sv = scales.sigma_v
