@@ -99,8 +99,11 @@ def main(argv: Sequence[str] | None = None) -> dict:
          "| quantity | mean z | sd z | 90 % cover |", "|---|---|---|---|"]  # fmt: skip
     L += [f"| {r['quantity']} | {r['mean_z']:+.2f} | {r['sd_z']:.2f} | {r['cover90']:.2f} |"
           for r in rows]  # fmt: skip
-    L += ["", f"Storeys' coefficients pooled: 90 % cover "
-          f"{np.mean([r['cover90'] for r in drift]):.3f} over {len(drift)} x {a.records}."]
+    L += [
+        "",
+        f"Storeys' coefficients pooled: 90 % cover "
+        f"{np.mean([r['cover90'] for r in drift]):.3f} over {len(drift)} x {a.records}.",
+    ]
     (a.out / "sensor_noise.md").write_text("\n".join(L) + "\n")
     print("\n".join(L))
     return {"rows": rows, "runs": runs}

@@ -185,7 +185,8 @@ def spectral_matrix(
 def _hermitian_parts(S: np.ndarray) -> np.ndarray:
     r"""``(..., n, n)`` Hermitian to ``(..., n^2)`` real: the diagonal, and :math:`\sqrt2`
     times the real and imaginary parts above it, so that :math:`\mathrm{tr}(WS)` of two
-    Hermitian matrices is the dot product of their parts."""
+    Hermitian matrices is the dot product of their parts.
+    """
     n = S.shape[-1]
     i, j = np.triu_indices(n, 1)
     d = np.einsum("...ii->...i", S).real
