@@ -134,8 +134,11 @@ def cmd_estimate(args) -> int:
         cov = G @ cov @ G.T
     sd = np.sqrt(np.diag(cov))
     z = 1.6448536269514722  # the 95 % quantile of N(0, 1)
+    label = "default"  # a system's by name: its record may call for the spectral matrix
+    if isinstance(est.model, System):
+        label = ", ".join(m.component for m in est.ql.moments)
     print(
-        f"{record.name or args.record}: {est.model!r}, {cost or 'default'} components; "
+        f"{record.name or args.record}: {est.model!r}, {cost or label} components; "
         f"Hansen J = {fmt(est.test['J'])} on {est.test['df']} df "
         f"(p = {fmt(est.test['p_value'])})"
     )
