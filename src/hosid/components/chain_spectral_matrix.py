@@ -210,7 +210,8 @@ class ChainSpectralMatrix:
         inv = np.linalg.inv(S0)
         logs = np.zeros(p, dtype=bool)
         logs[system.log_params] = True
-        step = np.where(logs, 1e-6 * th0, 1e-6 * np.maximum(np.abs(th0), 1e-8))
+        floor = 1e-3 * np.max(np.abs(th0[: system.n_drift]))  # a coefficient near 0
+        step = np.where(logs, 1e-6 * th0, 1e-6 * np.maximum(np.abs(th0), floor))
         E = np.diag(step)
         both = spectral_matrix(system, np.concatenate([th0 + E, th0 - E]), P.omega, state.dt)
         dS = (both[:p] - both[p:]) / (2.0 * step[:, None, None, None])
