@@ -124,10 +124,10 @@ def band_periodogram(record, lo: float, hi: float) -> Periodogram:
         L = b - a
         w = 2.0 * math.pi * np.fft.rfftfreq(L, dt)
         keep = np.flatnonzero((w >= lo) & (w <= hi))
-        Y = np.fft.rfft(y * win.samples(L), axis=-1)[:, keep] * dt
+        h = win.samples(L)
+        Y = np.fft.rfft(y * h, axis=-1)[:, keep] * dt
         cross.append(np.einsum("ik,jk->kij", Y, Y.conj()) / (2.0 * math.pi * L * dt * win.k2))
         omega.append(w[keep])
-        h = win.samples(L)
         taper.append(np.full(keep.size, L * np.sum(h**4) / np.sum(h**2) ** 2))
         group.append(first + np.arange(keep.size) // GROUP)
         first = group[-1][-1] + 1 if keep.size else first
