@@ -83,9 +83,12 @@ def test_quick_run_writes_the_three_methods(run):
     assert any(r["method"].startswith("hosid") for r in rows) == any(
         "matched" in f for f in res["hosid"]
     )
-    clean, noisy, modelled = res["control"][1:]  # as simulated, with the sensors' noise
+    clean, noisy, modelled = res["control"][1:4]  # as simulated, with the sensors' noise
     assert clean.startswith("estimated modes [0.52")  # its first mode, 0.528 Hz, recovered
     assert noisy.startswith(("estimated modes", "the estimate fails"))
     assert modelled.startswith("estimated modes [0.52")  # the noise modelled: recovered
+    white, shaped = res["control"][5:]  # driven by a narrow-band force, with that noise
+    assert white.startswith(("estimated modes", "the estimate fails"))
+    assert shaped.startswith("estimated modes [0.52") and "wf " in shaped  # recovered
     assert (out / "building.png").stat().st_size > 0
     assert (out / "work" / "floors.npz").is_file()

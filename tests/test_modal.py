@@ -15,6 +15,7 @@ import pytest
 from hosid.model.linear_chain import modes
 from hosid.model.modal import (
     MAX_DRAWS,
+    estimate_modes,
     modal_draws,
     response_slopes,
     small_slopes,
@@ -96,3 +97,31 @@ def test_overdamped_draws_are_left_out():
     omega, _, _ = modal_draws(TWO, theta, small_slopes(TWO))
     assert omega.shape == (1, 2)
     assert summarize_modes(TWO, theta[1:], small_slopes(TWO)) == []
+
+
+def test_estimate_modes_by_the_delta_method():
+    """One dof of unit mass: f = sqrt(a2) / 2 pi, zeta = a1 / 2 sqrt(a2), whose gradients
+    give the sds exactly (to the differences' rounding, 1e-6); and on a two-dof chain the
+    delta method's sds agree with those of 4000 normal draws of the estimate to 10 %."""
+    one = System(("x",), [(("ground", "x"), ("linear",))])
+    th, cov = np.array([0.4, 25.0, 1.0]), np.diag([0.01, 0.25, 0.01])
+    (m,) = estimate_modes(one, th, cov, small_slopes(one))
+    f_sd = math.sqrt(0.25) / (4 * math.pi * 5.0)
+    z_sd = math.hypot(0.1 / 10.0, 0.5 * 0.4 / (4 * 125.0))
+    assert m["frequency_hz"]["mean"] == pytest.approx(5.0 / (2 * math.pi), rel=1e-12)
+    assert m["frequency_hz"]["sd"] == pytest.approx(f_sd, rel=1e-6)
+    assert m["damping_ratio"]["sd"] == pytest.approx(z_sd, rel=1e-6)
+    upper = m["damping_ratio"]["q95"] - m["damping_ratio"]["mean"]
+    assert upper == pytest.approx(1.6448536 * z_sd)
+    two = System(("x1", "x2"), [(("ground", "x1"), ("linear",)), (("x1", "x2"), ("linear",))])
+    th = np.array([0.3, 20.0, 0.2, 10.0, 0.8, 1.0, 1.0])
+    cov = np.diag((0.01 * th) ** 2)
+    draws = np.random.default_rng(0).multivariate_normal(th, cov, 4000)
+    got, ref = (
+        estimate_modes(two, th, cov, small_slopes(two)),
+        summarize_modes(two, draws, small_slopes(two)),
+    )
+    for a, b in zip(got, ref, strict=True):
+        for key in ("frequency_hz", "damping_ratio"):
+            assert a[key]["sd"] == pytest.approx(b[key]["sd"], rel=0.1)
+        np.testing.assert_allclose(a["shape"], b["shape"], atol=1e-3)

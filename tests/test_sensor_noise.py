@@ -138,6 +138,9 @@ def test_the_record_calls_for_the_noise_unless_the_file_says():
     est = hosid.estimate(rec, off)
     assert not est.model.has("N[x1]") and est.ql.moments[0].component == "identities"
     assert [c.status for c in est.checks if c.name == "sensor_noise"] == ["warn"]
+    # walkers enough for the file's 6 parameters but not for the 8 the record called for
+    with pytest.raises(HosidInputError, match=r"at least 18 \(the record added 2 param"):
+        hosid.fit(rec, plain, n_walkers=14, progress=False)
 
 
 def test_the_twin_study_runs(tmp_path):

@@ -65,17 +65,19 @@ EDGE_FACTOR = 4.0
 WALK_SHARE = 1e-3
 
 
-def chain_band(state: ChainState) -> tuple[float, float]:
-    """``(omega_lo, omega_hi)`` of the J2 band of a system's state (module docstring)."""
+def chain_band(state: ChainState, *, edges: bool = True) -> tuple[float, float]:
+    """``(omega_lo, omega_hi)`` of the J2 band of a system's state (module docstring);
+    without ``edges`` the top ignores where the record's excitation seems to stop.
+    """
     chans = state.channels
     hi = min(
         BAND_FACTOR * max(c.scales.omega_n for c in chans),
         0.5 * state.omega_nyquist,
         0.5 * min(c.spectrum.floor_edge for c in chans),
     )
-    edges = [c.spectrum.edge[0] for c in chans if c.spectrum.edge is not None]
-    if edges:
-        hi = min(hi, 0.9 * min(edges))
+    found = [c.spectrum.edge[0] for c in chans if c.spectrum.edge is not None]
+    if found and edges:
+        hi = min(hi, 0.9 * min(found))
     lo = EDGE_FACTOR * max(c.omega_low for c in chans)
     if any(c.kind == "acceleration" for c in chans):  # the trapezoid's walk: stiffness x it
         w2 = max(c.scales.omega_n for c in chans) ** 2

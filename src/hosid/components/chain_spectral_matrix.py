@@ -17,7 +17,10 @@ the channels' two-sided spectral matrix is
     + \mathrm{diag}(N_d), \qquad H(\omega) = (K - \omega^2M + i\omega C)^{-1}
 
 (eq 21 with its indices: the inferred forces' matrix :math:`\mathrm{diag}(S_{0,d})`, seen
-through the system's transfer, and each sensor's noise).  Each segment's periodogram
+through the system's transfer, and each sensor's noise); forces of a shared shape
+:math:`L(\omega;\theta)` (:attr:`hosid.model.system.System.excitation`, a shaker's or a
+sea's) have :math:`\mathrm{diag}(S_{0,d}L(\omega))`, and this is then the system's only
+component (the identities assume white forces).  Each segment's periodogram
 :math:`I_k = Y_kY_k^{\mathsf H}/(2\pi T k_2)` (Hann taper over the whole segment, linear
 trend removed, :math:`Y_k` the channels' transforms) over the band, and the equations
 are Whittle's score with its weights frozen at the pilot :math:`\tilde\theta`,
@@ -44,6 +47,7 @@ the taper's leakage widens the peaks (no correction).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -68,23 +72,29 @@ LINEAR = ("linear_damping", "linear_stiffness")
 def check_noise_model(system: System, state: ChainState) -> None:
     """Raise unless ``system`` is one this component holds for (module docstring).
 
+    A system whose forces share a shape (:attr:`~hosid.model.system.System.excitation`)
+    is fitted by this component only: the generator identities assume white forces.
+
     Raises
     ------
     HosidInputError
         If a term is not linear, or a channel is not an acceleration with a sensor noise.
     """
+    what = "sensor noise is modelled"
+    if system.excitation:
+        what = f"a system's shaped force ({system.excitation[0].name}) is fitted"
     other = sorted({t.name for _, t in system.columns if t.name not in LINEAR})
     if other:
         raise HosidInputError(
-            f"sensor noise is modelled for linear systems only ({', '.join(LINEAR)}); this "
-            f"one has {', '.join(other)}"
+            f"{what} for linear systems only ({', '.join(LINEAR)}); this one has "
+            f"{', '.join(other)}"
         )
     bare = [c.name for c in state.channels if c.kind != "acceleration"]
     bare += [d for d in system.dofs if d not in (system.sensor_noise or ()) and d not in bare]
     if bare:
         raise HosidInputError(
-            "sensor noise is modelled when every channel is an acceleration with its own "
-            f"noise (sensor_noise = true); not so for {', '.join(bare)}"
+            f"{what} when every channel is an acceleration with its own noise "
+            f"(sensor_noise = true); not so for {', '.join(bare)}"
         )
 
 
@@ -100,16 +110,19 @@ class Periodogram:
     taper: float
 
 
-def periodogram(state: ChainState) -> Periodogram:
+def periodogram(state: ChainState, system: System) -> Periodogram:
     """The state's record's :func:`band_periodogram` over the band (module docstring),
-    computed once.
+    computed once.  Under a shaped force the band's top is not cut at the record's
+    apparent excitation edge (the shape's own fall is modelled).
     """
+    shaped = bool(system.excitation)
 
     def make():
         lo = 0.5 * min(c.omega_low for c in state.channels)
-        return band_periodogram(state.record, lo, chain_band(state)[1])
+        hi = chain_band(state, edges=not shaped)[1]
+        return band_periodogram(state.record, lo, hi)
 
-    return state.cached(("spectral matrix periodogram",), make)
+    return state.cached(("spectral matrix periodogram", shaped), make)
 
 
 def band_periodogram(record, lo: float, hi: float) -> Periodogram:
@@ -149,6 +162,9 @@ def spectral_matrix(
     :math:`s^2 = \mathrm{sinc}^2(\omega\Delta t/2)`, and its aliases add
     :math:`(1 - s^2)\,\mathrm{diag}(S_{0,d}/m_d^2)` (a driven dof's acceleration is flat
     far above the modes, and a flat spectrum's aliases through the average sum to 1).
+    A shaped force (:attr:`~hosid.model.system.System.excitation`) multiplies the levels
+    by :math:`L(\omega)`, and the aliases by :math:`L(2\pi/\Delta t - \omega)`, that of
+    the nearest alias (a shape that falls off above the modes leaves them negligible).
     """
     th = np.asarray(theta, dtype=float)
     B, n = system.incidence, system.n
@@ -172,12 +188,17 @@ def spectral_matrix(
     g = g * (omega**2)[:, None]  # acceleration per unit force
     g = g * np.sqrt(system.levels(th)[..., driven])[..., :, None, None]
     S = np.einsum("...akn,...akm->...knm", g, g.conj())
+    white = system.spectrum.white
+    if not white:
+        S = S * system.spectrum.shape(omega, th)[..., :, None, None]
     idx = np.arange(n)
     if dt is not None:
         s2 = np.sinc(omega * dt / (2.0 * math.pi)) ** 2
         S = S * s2[:, None, None]
         flat = system.levels(th) * minv**2  # (..., n), 0 off the driven dofs
-        S[..., idx, idx] += (1.0 - s2)[:, None] * flat[..., None, :]
+        alias = 1.0 - s2 if white else (1.0 - s2) * system.spectrum.shape(
+            2.0 * math.pi / dt - omega, th)  # the nearest alias's shape  # fmt: skip
+        S[..., idx, idx] += alias[..., :, None] * flat[..., None, :]
     S[..., idx, idx] += system.noise_levels(th)[..., None, :]
     return S
 
@@ -204,7 +225,7 @@ class ChainSpectralMatrix:
         """The frozen-weight score, per group of bins, at ``pilot``."""
         check_noise_model(system, state)
         th0 = np.asarray(pilot, dtype=float)
-        P = periodogram(state)
+        P = periodogram(state, system)
         p = th0.size
         S0 = spectral_matrix(system, th0, P.omega, state.dt)
         inv = np.linalg.inv(S0)
@@ -239,14 +260,33 @@ class ChainSpectralMatrix:
         return Moments(self.name, labels, mean, per - per.mean(axis=0), info, cov)
 
 
-def spectral_pilot(state: ChainState, system: System, theta: np.ndarray, lower, upper):
-    """Whittle's maximum within ``[lower, upper]`` from two starts, the better one: ``theta``
-    and a uniform one (:func:`uniform_start`), each with every noise level at its
-    channel's acceleration floor; L-BFGS-B in the logarithms of the positive parameters, on
-    the periodogram averaged over each group of bins (the rounds then solve on every bin).
+def spectral_pilot(state: ChainState, system: System, theta, lower, upper, *, band=None):
+    r"""Whittle's maximum within ``[lower, upper]`` from two starts, the better one: ``theta``
+    (if given) and a uniform one (:func:`uniform_start`), each with every noise level at
+    its channel's acceleration floor; L-BFGS-B in the logarithms of the positive
+    parameters, on the periodogram (``band``, default :func:`periodogram`) averaged over
+    each group of bins (the rounds then solve on every bin).  Under a shaped force, the
+    white force's maximum first, and from it with the shape at :func:`shape_start` (the
+    shape's grid holds nearly white shapes, so the result is at least as likely as the
+    white force's: from the starts directly, the building's record gave a worse maximum).
+    A record without sensor noise leaves every :math:`S(\omega)` of a force at fewer dofs
+    than channels nearly singular: the search is then ill-conditioned (a simulated
+    two-dof chain under a narrow-band force: the shape's parameters far off, Hansen's J
+    in the thousands).
     """
     check_noise_model(system, state)
-    P = periodogram(state)
+    P = periodogram(state, system) if band is None else band
+    starts = [uniform_start(state, system)]
+    starts = starts if theta is None else [np.array(theta, dtype=float), *starts]
+    for th in starts:
+        for d in system.sensor_noise:
+            th[system.index(f"N[{d}]")] = state.channels[system.dofs.index(d)].band.floor
+    if system.excitation:
+        white = dataclasses.replace(system, excitation=(), values=())
+        keep = [system.index(n) for n in white.param_names]
+        sub = None if theta is None else np.asarray(theta, dtype=float)[keep]
+        starts = [np.zeros(len(system.param_names))]
+        starts[0][keep] = spectral_pilot(state, white, sub, lower[keep], upper[keep], band=P)
     G = int(P.group.max()) + 1
     count = np.bincount(P.group, minlength=G)
     omega = np.bincount(P.group, P.omega, G) / count
@@ -266,23 +306,60 @@ def spectral_pilot(state: ChainState, system: System, theta: np.ndarray, lower, 
         out = np.sum(logdet.real + tr, axis=-1)
         return np.where(np.all(sign.real > 0, axis=-1) & np.isfinite(out), out, 1e300)
 
-    def fun(z):  # the value and its forward-difference gradient, in one batch
-        h = 1e-6 * np.maximum(np.abs(z), 1.0)
-        f = nll(np.vstack([z, z + np.diag(h)]))
-        return f[0], (f[1:] - f[0]) / h
+    def minimize(z0, free):  # over the parameters ``free``, the others held
+        def fun(u):  # the value and its forward-difference gradient, in one batch
+            z = np.repeat(z0[None], u.size + 1, axis=0)
+            h = 1e-6 * np.maximum(np.abs(u), 1.0)
+            z[:, free] = np.vstack([u, u + np.diag(h)])
+            f = nll(z)
+            return f[0], (f[1:] - f[0]) / h
+
+        got = optimize.minimize(fun, z0[free], jac=True, method="L-BFGS-B",
+                                bounds=list(zip(lo[free], hi[free], strict=True)),
+                                options={"maxiter": 5000, "maxfun": 20000})  # fmt: skip
+        z = z0.copy()
+        z[free] = got.x
+        return z, got.fun
 
     best = None
-    for th in (np.array(theta, dtype=float), uniform_start(state, system)):
-        for d in system.sensor_noise:
-            th[system.index(f"N[{d}]")] = state.channels[system.dofs.index(d)].band.floor
-        th = np.clip(th, lower, upper)
-        z0 = np.where(logs, np.log(np.maximum(th, 1e-300)), th)
-        got = optimize.minimize(fun, z0, jac=True, method="L-BFGS-B",
-                                bounds=list(zip(lo, hi, strict=True)),
-                                options={"maxiter": 5000, "maxfun": 20000})  # fmt: skip
-        if best is None or got.fun < best.fun:
+    for th in starts:
+        th = np.clip(shape_start(state, system, th, lower, upper, nll, logs), lower, upper)
+        got = minimize(np.where(logs, np.log(np.maximum(th, 1e-300)), th), np.arange(th.size))
+        if best is None or got[1] < best[1]:
             best = got
-    return np.where(logs, np.exp(best.x), best.x)
+    return np.where(logs, np.exp(best[0]), best[0])
+
+
+#: Grid points per parameter of a shaped force's start (:func:`shape_start`).
+SHAPE_GRID = 9
+
+
+def shape_start(state, system: System, theta, lower, upper, nll, logs) -> np.ndarray:
+    """``theta`` with the forces' shape parameters (if any) at the best of a grid over
+    their supports (:data:`SHAPE_GRID` points each, log-spaced for a log parameter), the
+    levels rescaled at each so that the force's level at the channels' largest peak stays
+    ``theta``'s; ``nll`` is Whittle's on the groups' averages (:func:`spectral_pilot`).
+    """
+    th = np.array(theta, dtype=float)
+    idx = [i for _, ix in system.spectrum.terms for i in ix]
+    if not idx:
+        return th
+    axes = [np.exp(np.linspace(np.log(lower[i]), np.log(upper[i]), SHAPE_GRID)) if logs[i]
+            else np.linspace(lower[i], upper[i], SHAPE_GRID) for i in idx]  # fmt: skip
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(idx))
+    cand = np.repeat(th[None], grid.shape[0], axis=0)
+    cand[:, idx] = grid
+    levels = [system.index(f"S0[{d}]") for d in system.driven]
+    cand[:, levels] /= system.spectrum.shape(np.array([peak_frequency(state, system)]), cand)
+    z = np.where(logs, np.log(np.maximum(cand, 1e-300)), cand)
+    return cand[int(np.argmin(nll(z)))]
+
+
+def peak_frequency(state: ChainState, system: System) -> float:
+    """The largest peak of the channels' summed periodogram over the band (rad/s)."""
+    P = periodogram(state, system)
+    power = np.einsum("kii->k", P.matrix).real
+    return float(P.omega[np.argmax(np.convolve(power, np.ones(2 * GROUP + 1), "same"))])
 
 
 def uniform_start(state: ChainState, system: System, zeta: float = 0.02) -> np.ndarray:
@@ -293,9 +370,7 @@ def uniform_start(state: ChainState, system: System, zeta: float = 0.02) -> np.n
     periodogram over the band, damping ratio ``zeta``: :math:`k = \omega^2/\mu_1`,
     :math:`c = 2\zeta\omega/\mu_1`.
     """
-    P = periodogram(state)
-    power = np.einsum("kii->k", P.matrix).real
-    peak = P.omega[np.argmax(np.convolve(power, np.ones(2 * GROUP + 1), "same"))]
+    peak = peak_frequency(state, system)
     th = np.zeros(len(system.param_names))
     for name in system.param_names:
         if name.startswith("mass["):

@@ -95,11 +95,7 @@ def fit(
     t0 = time.perf_counter()
     o = FitOptions.of(options, **settings)
     structure = St.resolve(system, model)
-    n_min = 2 * len(structure.param_names) + 2
-    if o.n_walkers is None:
-        o = FitOptions.of(o, n_walkers=max(32, n_min))
-    if int(o.n_walkers) != o.n_walkers or o.n_walkers < n_min or o.n_walkers % 2:
-        raise HosidInputError(f"n_walkers must be even and at least {n_min}, got {o.n_walkers}")
+    walkers(o, structure)
     cost = o.cost
     if o.components is not None:
         comps, cost = list(o.components), o.cost or "custom"
@@ -115,7 +111,10 @@ def fit(
         record, structure, comps, block_seconds=o.block_seconds, force=o.force, unit=o.unit,
         checks=o.checks, progress=o.progress, support=o.priors, settle=o.settle,
     )  # fmt: skip
-    structure = est.model  # with the excitation terms the record calls for
+    if est.model.param_names != structure.param_names:  # terms the record called for
+        walkers(o, est.model, added=len(est.model.param_names) - len(structure.param_names))
+    structure = est.model
+    o = FitOptions.of(o, n_walkers=o.n_walkers or max(32, 2 * len(structure.param_names) + 2))
     timings = {"estimate": time.perf_counter() - t0}
     priors = o.priors
     if priors is None:
@@ -236,6 +235,20 @@ def _sample(record: Record, est, cal, priors, o: FitOptions, cost):
             raise
         raise HosidInputError(f"{exc} ({_outside(priors, names, cal.theta)})") from None
     return chain, rng, kde
+
+
+def walkers(o: FitOptions, structure, added: int = 0) -> None:
+    """Raise unless ``o.n_walkers`` (if given) is even and at least twice the parameters
+    plus 2 (emcee's stretch move needs it); ``added`` parameters came from the record.
+    """
+    n_min = 2 * len(structure.param_names) + 2
+    if o.n_walkers is None:
+        return
+    if int(o.n_walkers) != o.n_walkers or o.n_walkers < n_min or o.n_walkers % 2:
+        why = f" (the record added {added} parameters)" if added else ""
+        raise HosidInputError(
+            f"n_walkers must be even and at least {n_min}{why}, got {o.n_walkers}"
+        )
 
 
 def _outside(priors, names, theta) -> str:

@@ -103,7 +103,7 @@ def system_components(cost: str | None = None, system: System | None = None) -> 
             f"a system is fitted with the default components; cost {cost!r} is the single "
             "oscillator's (give --model with term names for it)"
         )
-    if system is not None and system.sensor_noise:
+    if system is not None and (system.sensor_noise or system.excitation):
         return [ChainSpectralMatrix()]
     return [ChainIdentities(), ChainJ2(), ChainLevel(), ChainKurtosis()]
 
@@ -185,12 +185,13 @@ def noise_check(state: ChainState, system: System) -> list[Check]:
 
 def with_sensor_noise(state: ChainState, system: System, checks: list) -> tuple[System, list]:
     """``system`` with every channel's sensor noise modelled (``sensor_noise = true``) when
-    its file leaves that to the record (not given), the ``sensor_noise`` check warns, and
-    the channels' spectral matrix holds for it (a linear system of accelerations:
+    its file leaves that to the record (not given), the ``sensor_noise`` check warns or the
+    forces have a shape (whose one component is the spectral matrix), and the channels'
+    spectral matrix holds for it (a linear system of accelerations:
     :func:`hosid.components.chain_spectral_matrix.check_noise_model`); else as given.
     """
     warned = any(c.name == "sensor_noise" and c.status == "warn" for c in checks)
-    if system.sensor_noise is not None or not warned:
+    if system.sensor_noise is not None or not (warned or system.excitation):
         return system, checks
     noisy = dataclasses.replace(system, sensor_noise=True)
     try:
@@ -242,9 +243,16 @@ def estimate_system(
         support,
         lambda: system.default_priors(system_scales(state, system), constrained=False),
     )
-    theta0 = np.array(start, dtype=float) if start is not None else chain_pilot(state, system)
-    if start is None and system.sensor_noise:
+    if start is not None:
+        theta0 = np.array(start, dtype=float)
+    elif system.sensor_noise or system.excitation:  # from the identities' pilot if any
+        try:
+            theta0 = chain_pilot(state, system)
+        except HosidInputError:
+            theta0 = None
         theta0 = spectral_pilot(state, system, theta0, lower, upper)
+    else:
+        theta0 = chain_pilot(state, system)
     logs = system.log_params
     theta, ql = solve_rounds(state, system, components, theta0, rounds, logs, lower, upper)
     J_best = float(-2.0 * ql(theta))

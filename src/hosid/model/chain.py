@@ -8,10 +8,15 @@ same two normals a sub-step and driven dof :math:`d`: the velocity increment
 displacement's share of the force beyond Heun's :math:`h\Delta W_d/2`, an independent
 normal of variance :math:`2\pi S_{0,d}h^3/12` over :math:`m_d^2` (without it the sampled
 spectrum's top falls as if the force were low-passed).  The forces are independent
-across dofs; undriven dofs get none.  The run starts at rest, and the samples start
-after a burn-in (default 30 decay times of the slowest linear mode, at least 60 s).
-The normals are drawn from the given generator in chunks of :data:`CHUNK` samples
-(increments, then displacement shares, per chunk), so memory stays small on long runs.
+across dofs; undriven dofs get none.  Forces of a shape :math:`L`
+(:attr:`hosid.model.system.System.excitation`) are drawn for the whole run on the
+sub-step grid (:func:`hosid.model.simulate.shaped_force`: white noise shaped by one FFT)
+and taken as linear over a sub-step: its integral is :math:`\Delta W_d`, its share in
+the displacement beyond Heun's :math:`-h^2(f_{k+1} - f_k)/12`.  The run starts at rest,
+and the samples start after a burn-in (default 30 decay times of the slowest linear mode,
+at least 60 s).  The normals are drawn from the given generator in chunks of
+:data:`CHUNK` samples (increments, then displacement shares, per chunk), so memory stays
+small on long runs (a shaped force's run is held whole).
 
 **What an acceleration channel holds.**  Under a white force the acceleration
 :math:`\ddot q = M^{-1}(F - \Phi\theta)` has no finite value at an instant (its white
@@ -57,6 +62,7 @@ from ..errors import HosidInputError
 from ..record import Record, write_record
 from ..screen import THRESHOLDS
 from .linear_chain import modes, state_matrices
+from .simulate import shaped_force
 from .system import GROUND, System
 from .system_file import check_measured
 
@@ -254,10 +260,23 @@ def simulate_chain(
     q, v = np.zeros(n), np.zeros(n)
     qs, vs = np.empty((n_out, n)), np.empty((n_out, n))
     vh = np.empty((n_out + 1 if "acceleration" in kinds else 0, n))
+    shaped = None
+    if not system.spectrum.white:  # the whole run's forces on the sub-step grid
+
+        def shape(omega):
+            return system.spectrum.shape(omega, th)
+
+        shaped = np.stack([shaped_force((burn + n_out) * sub + 1, h, lev, shape, rng)
+                           for lev in levels], axis=-1)  # fmt: skip
     for i0 in range(0, burn + n_out, CHUNK):
         size = (min(i0 + CHUNK, burn + n_out) - i0) * sub
-        dW = rng.standard_normal((size, levels.size)) * sd_w
-        dZ = rng.standard_normal((size, levels.size)) * sd_z
+        if shaped is None:
+            dW = rng.standard_normal((size, levels.size)) * sd_w
+            dZ = rng.standard_normal((size, levels.size)) * sd_z
+        else:  # a smooth force, linear over a sub-step: its integral and (h - s) moment
+            f = shaped[i0 * sub : i0 * sub + size + 1]
+            dW = 0.5 * h * (f[1:] + f[:-1])
+            dZ = -(h**2 / 12.0) * (f[1:] - f[:-1])
         _heun_chain(q, v, dW, dZ, i0, sub, h, kernel, burn, qs, vs, vh)
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise HosidInputError(

@@ -269,16 +269,18 @@ class ImpulsiveExcitation(Term):
 
 class Spectrum:
     r"""The force spectrum :math:`S_0L(\omega;\theta)` of a model (module docstring), for
-    parameter vectors ``theta`` of shape ``(..., p)`` in the model's layout.
+    parameter vectors ``theta`` of shape ``(..., p)`` in the model's layout; of a
+    :class:`hosid.model.system.System`, the shape :math:`L` its driven dofs' forces share
+    (its levels :math:`S_{0,d}` are :meth:`~hosid.model.system.System.levels`).
     """
 
     def __init__(self, model):
         names = model.param_names
-        self.i_S0 = names.index("S0")
+        self.i_S0 = names.index("S0") if "S0" in names else None
+        terms = getattr(model, "terms", None)
+        terms = model.excitation if terms is None else terms
         self.terms = [
-            (t, tuple(names.index(p) for p in t.params))
-            for t in model.terms
-            if isinstance(t, ShapeTerm)
+            (t, tuple(names.index(p) for p in t.params)) for t in terms if isinstance(t, ShapeTerm)
         ]
         self.i_wb = names.index("wb") if "wb" in names else None
         self.shape_indices = tuple(names.index(p) for t, _ in self.terms for p in t.shape_params)

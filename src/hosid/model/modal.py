@@ -29,6 +29,10 @@ frequency :math:`\omega/2\pi` (Hz) and the damping ratio :math:`\zeta` with thei
 sd and 5/25/50/75/95 % quantiles, and the mean shape (the real part of each draw's shape,
 scaled so that its largest entry is 1, averaged and scaled again).  Modes are matched
 across draws by the order of their frequencies.
+
+Without posterior draws (an estimate and its Laplace covariance, where no fit ran), the
+modes of the estimate carry the delta method's sds and normal intervals
+(:func:`estimate_modes`).
 """
 
 from __future__ import annotations
@@ -38,7 +42,14 @@ import numpy as np
 from .linear_chain import eigenmodes, state_matrix
 from .system import System
 
-__all__ = ["MAX_DRAWS", "modal_draws", "response_slopes", "small_slopes", "summarize_modes"]
+__all__ = [
+    "MAX_DRAWS",
+    "estimate_modes",
+    "modal_draws",
+    "response_slopes",
+    "small_slopes",
+    "summarize_modes",
+]
 
 #: At most this many posterior draws (evenly spaced) enter the modal summary.
 MAX_DRAWS = 4000
@@ -76,27 +87,30 @@ def _thin(theta: np.ndarray) -> np.ndarray:
     return flat
 
 
+def _linear_modes(system: System, th: np.ndarray, slopes: np.ndarray):
+    """:func:`hosid.model.linear_chain.eigenmodes` of draw ``th``'s equivalent linear system."""
+    B = system.incidence
+    elem = np.array([e for e, _ in system.columns], dtype=int)
+    is_v = np.array([t.variable == "v" for _, t in system.columns])
+    is_x = np.array([t.variable == "x" for _, t in system.columns])
+    coef = th[: len(system.columns)] * slopes
+    c = np.bincount(elem, weights=coef * is_v, minlength=len(system.elements))
+    k = np.bincount(elem, weights=coef * is_x, minlength=len(system.elements))
+    minv = 1.0 / system.mass_vector(th)
+    return eigenmodes(state_matrix(minv, B.T @ (c[:, None] * B), B.T @ (k[:, None] * B)))
+
+
 def modal_draws(system: System, theta, slopes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     r"""``omega`` (rad/s) and ``zeta`` ``(D, n)`` and real shapes ``(D, n, n)`` (dof, mode)
     of the equivalent linear system of every draw of ``theta`` ``(..., p)`` (at most
     :data:`MAX_DRAWS`), with the slopes ``slopes`` (module docstring).  A draw with fewer
     than ``n`` underdamped modes (an overdamped one) is left out.
     """
-    flat = _thin(theta)
     gamma = np.asarray(slopes, dtype=float)
-    B = system.incidence
-    E = len(system.elements)
     n = system.n
-    is_v = np.array([t.variable == "v" for _, t in system.columns])
-    is_x = np.array([t.variable == "x" for _, t in system.columns])
-    elem = np.array([e for e, _ in system.columns], dtype=int)
-    nd = len(system.columns)
     omegas, zetas, shapes = [], [], []
-    for th in flat:
-        c = np.bincount(elem, weights=th[:nd] * gamma * is_v, minlength=E)
-        k = np.bincount(elem, weights=th[:nd] * gamma * is_x, minlength=E)
-        minv = 1.0 / system.mass_vector(th)
-        m = eigenmodes(state_matrix(minv, B.T @ (c[:, None] * B), B.T @ (k[:, None] * B)))
+    for th in _thin(theta):
+        m = _linear_modes(system, th, gamma)
         if m.omega.size != n:
             continue
         omegas.append(m.omega)
@@ -133,4 +147,44 @@ def summarize_modes(system: System, theta, slopes) -> list[dict]:
             "shape": s.round(12).tolist(),
             "draws": int(omega.shape[0]),
         })  # fmt: skip
+    return out
+
+
+#: The normal quantiles of :data:`QUANTILES` (the delta method's intervals).
+_Z = {0.05: -1.6448536269514729, 0.25: -0.6744897501960817, 0.5: 0.0,
+      0.75: 0.6744897501960817, 0.95: 1.6448536269514729}  # fmt: skip
+
+
+def estimate_modes(system: System, theta, cov, slopes, *, step: float = 1e-6) -> list[dict]:
+    r"""The underdamped modes of one estimate ``theta`` with its covariance ``cov`` (module
+    docstring), as :func:`summarize_modes` gives them: each frequency and damping ratio
+    with the delta method's sd, :math:`\sqrt{J\Sigma J^{\mathsf T}}` (:math:`J` by central
+    differences on ``step`` of each parameter, or of a thousandth of the largest drift
+    coefficient for one near zero), and normal quantiles; ``draws`` is 0.  An sd is NaN
+    where a step changes the number of underdamped modes.
+    """
+    th = np.asarray(theta, dtype=float)
+    gamma = np.asarray(slopes, dtype=float)
+    m = _linear_modes(system, th, gamma)
+    r = m.omega.size
+
+    def values(t):
+        got = _linear_modes(system, t, gamma)
+        return np.r_[got.omega, got.zeta] if got.omega.size == r else np.full(2 * r, np.nan)
+
+    mid = np.r_[m.omega / (2.0 * np.pi), m.zeta]
+    floor = 1e-3 * np.max(np.abs(th[: system.n_drift]))
+    h = step * np.maximum(np.abs(th), floor)
+    J = np.stack([(values(th + e) - values(th - e)) / (2.0 * e.sum()) for e in np.diag(h)], 1)
+    J[:r] /= 2.0 * np.pi
+    sd = np.sqrt(np.einsum("ij,jk,ik->i", J, np.asarray(cov, dtype=float), J))
+    out = []
+    for j in range(r):
+        s = m.shapes.real[:, j] / m.shapes.real[np.argmax(np.abs(m.shapes.real[:, j])), j]
+        out.append({
+            key: {"mean": float(mid[j + k * r]), "sd": float(sd[j + k * r]),
+                  **{f"q{round(100 * p):02d}": float(mid[j + k * r] + z * sd[j + k * r])
+                     for p, z in _Z.items()}}
+            for k, key in enumerate(("frequency_hz", "damping_ratio"))
+        } | {"shape": s.round(12).tolist(), "draws": 0})  # fmt: skip
     return out

@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import HosidInputError
 from .excitation import Spectrum
 from .priors import PriorSet
+from .system_params import named
 from .terms import CANDIDATES, TERMS, DriftTerm, Scales, Term
 
 __all__ = ["ALIASES", "Model", "get_term"]
@@ -225,22 +226,7 @@ class Model:
         HosidInputError
             If a parameter is missing or unknown, or the vector has the wrong length.
         """
-        names = self.param_names
-        if isinstance(theta, Mapping):
-            missing = [n for n in names if n not in theta]
-            extra = [k for k in theta if k not in names]
-            if missing or extra:
-                raise HosidInputError(
-                    f"parameters do not match the model ({', '.join(names)}): "
-                    f"missing {missing or 'none'}, unknown {extra or 'none'}"
-                )
-            return {n: float(theta[n]) for n in names}
-        values = np.asarray(theta, dtype=float)
-        if values.shape != (len(names),):
-            raise HosidInputError(
-                f"theta has shape {values.shape}; expected ({len(names)},) for {', '.join(names)}"
-            )
-        return dict(zip(names, values.tolist(), strict=True))
+        return named(self.param_names, theta, "model")
 
     def vector(self, values: Mapping[str, float]) -> np.ndarray:
         """A parameter dict as a vector in :attr:`param_names` order."""

@@ -1,4 +1,4 @@
-r"""A system: degrees of freedom joined by elements of drift terms, and their white forces.
+r"""A system: degrees of freedom joined by elements of drift terms, and their forces.
 
 The displacements :math:`q_1, \dots, q_n` (one record column each) obey
 
@@ -28,26 +28,29 @@ In matrix form, with :math:`M = \mathrm{diag}(m)` and the coefficients :math:`\t
     \Phi_{d,(e,k)} = B_{ed}\,\phi_k(r_e \text{ or } \dot r_e),
 
 linear in :math:`\theta` (:meth:`System.features`).  The forces are independent Gaussian
-white noises on the driven degrees of freedom, :math:`E[F_d(t)F_{d'}(t + s)] =
-2\pi S_{0,d}\,\delta_{dd'}\,\delta(s)`, zero on the others.  :math:`m_1 = 1` (the
-scale: masses, coefficients and :math:`\sqrt{S_0}` scaled together give the same
-motion) unless the file gives it, and the other masses are parameters unless the file
-fixes them.
+noises on the driven degrees of freedom, zero on the others, of spectra
+:math:`S_{0,d}L(\omega)\delta_{dd'}`: white (:math:`L = 1`, :math:`E[F_d(t)F_{d'}(t + s)]
+= 2\pi S_{0,d}\delta_{dd'}\delta(s)`) or a shape :math:`L` they share
+(:attr:`System.excitation`, :mod:`hosid.model.excitation`: a shaker's or a sea's force).
+:math:`m_1 = 1` (the scale: masses, coefficients and :math:`\sqrt{S_0}` scaled together
+give the same motion) unless the file gives it, and the other masses are parameters
+unless the file fixes them.
 
 Parameter layout (:attr:`System.param_names`, the one place): every element's
 coefficients (elements in order, terms in the library's order), then the unknown
-masses, then the levels of the driven degrees of freedom, then those of the channels'
-sensor noises (white, two-sided, :math:`N_d`, added to what channel :math:`d` measures),
-each named with its place: ``a1[ground-x1]``, ``n2[x1-x2]``, ``mass[x2]``, ``S0[x1]``,
-``N[x1]``.  :meth:`System.single`
-names the one-element chain's parameters as :class:`hosid.model.Model` does (``a1``,
-``n1``, ``a2``, ``n2``, ``S0``).  Files: :mod:`hosid.model.system_file`; the linear
-chain's matrices and modes: :mod:`hosid.model.linear_chain`.
+masses, then the levels of the driven degrees of freedom and the shape's parameters
+(``wf``, ``zf``), then those of the channels' sensor noises (white, two-sided,
+:math:`N_d`, added to what channel :math:`d` measures), each named with its place:
+``a1[ground-x1]``, ``n2[x1-x2]``, ``mass[x2]``, ``S0[x1]``, ``N[x1]``.
+:meth:`System.single` names the one-element chain's parameters as
+:class:`hosid.model.Model` does (``a1``, ``n1``, ``a2``, ``n2``, ``S0``).  Files:
+:mod:`hosid.model.system_file`; parameters by name: :mod:`hosid.model.system_params`; the
+linear chain's matrices and modes: :mod:`hosid.model.linear_chain`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -61,6 +64,7 @@ from .system_file import (
     check_dofs,
     check_driven,
     check_element,
+    check_excitation,
     check_masses,
     check_measured,
     check_sensor_noise,
@@ -68,6 +72,7 @@ from .system_file import (
     check_values,
     read_system,
 )
+from .system_params import ParameterLayout
 from .terms import DriftTerm
 
 __all__ = ["GROUND", "MEASURED_KINDS", "Element", "System"]
@@ -89,7 +94,7 @@ class Element:
 
 
 @dataclass(frozen=True)
-class System:
+class System(ParameterLayout):
     """Degrees of freedom, elements, masses, the driven degrees of freedom, what each
     channel measures, and parameter values (module docstring for the equation).
 
@@ -111,6 +116,9 @@ class System:
     sensor_noise : bool or sequence of str, optional
         The dofs whose channels carry a white noise of unknown level ``N[dof]``; not given
         (``None``), a fit models it where a linear system's accelerations need it.
+    excitation : str or sequence, optional
+        The forces' shared spectral shape: a term of
+        :data:`hosid.model.system_file.SHAPES` (default white).
     values : mapping, optional
         Parameter values by name (a simulation's truth); stored as ``(name, value)``
         pairs in :attr:`param_names` order (``dict(system.values)``).
@@ -138,6 +146,7 @@ class System:
     driven: tuple[str, ...] = ()
     measured: str | Mapping[str, str] | tuple = ()
     sensor_noise: bool | tuple | None = None
+    excitation: str | tuple = ()
     values: Mapping[str, float] | tuple = ()
     single_names: bool = False
 
@@ -158,6 +167,7 @@ class System:
         set_(self, "driven", driven)
         set_(self, "measured", measured)
         set_(self, "sensor_noise", check_sensor_noise(self.sensor_noise, dofs))
+        set_(self, "excitation", check_excitation(self.excitation))
         if self.single_names and (len(dofs) != 1 or len(elements) != 1):
             raise HosidInputError("plain parameter names are for the one-element chain only")
         set_(self, "values", check_values(dict(self.values), self.param_names))
@@ -228,20 +238,8 @@ class System:
         drift = [f"{t.params[0]}[{self.elements[k].label}]" for k, t in self.columns]
         masses = [f"mass[{d}]" for d, m in zip(self.dofs, self.masses, strict=True) if m is None]
         noise = (f"N[{d}]" for d in self.sensor_noise or ())
-        return (*drift, *masses, *(f"S0[{d}]" for d in self.driven), *noise)
-
-    def index(self, name: str) -> int:
-        """Position of parameter ``name`` in ``theta``."""
-        return self.param_names.index(name)
-
-    def has(self, name: str) -> bool:
-        """Whether ``name`` is a parameter of the system."""
-        return name in self.param_names
-
-    @property
-    def log_params(self) -> list[int]:
-        """Parameters handled in their logarithm: the unknown masses and the levels."""
-        return [i for i, n in enumerate(self.param_names) if n.startswith(("mass[", "S0", "N["))]
+        shape = (p for t in self.excitation for p in t.params)
+        return (*drift, *masses, *(f"S0[{d}]" for d in self.driven), *shape, *noise)
 
     def default_priors(self, scales, *, constrained: bool = True):
         """Every parameter's default prior from the record's
@@ -260,7 +258,8 @@ class System:
         return {"dofs": list(self.dofs), "elements": elements, "masses": masses,
                 "driven": list(self.driven), "measured": self.declared,
                 "sensor_noise": None if self.sensor_noise is None
-                else list(self.sensor_noise)}  # fmt: skip
+                else list(self.sensor_noise),
+                "excitation": [t.name for t in self.excitation] or "white"}  # fmt: skip
 
     @property
     def incidence(self) -> np.ndarray:
@@ -271,77 +270,6 @@ class System:
             if e.between[0] != GROUND:
                 B[k, self.dofs.index(e.between[0])] = -1.0
         return B
-
-    # -------------------------------------------------------------- parameters
-    def params(self, theta: Mapping[str, float] | Sequence[float] | np.ndarray) -> dict:
-        """``theta`` (a mapping, or a vector in :attr:`param_names` order) as a dict.
-
-        Raises
-        ------
-        HosidInputError
-            If a parameter is missing or unknown, or the vector has the wrong length.
-        """
-        names = self.param_names
-        if isinstance(theta, Mapping):
-            missing = [n for n in names if n not in theta]
-            extra = [k for k in theta if k not in names]
-            if missing or extra:
-                raise HosidInputError(
-                    f"parameters do not match the system ({', '.join(names)}): "
-                    f"missing {missing or 'none'}, unknown {extra or 'none'}"
-                )
-            return {n: float(theta[n]) for n in names}
-        values = np.asarray(theta, dtype=float)
-        if values.shape != (len(names),):
-            raise HosidInputError(
-                f"theta has shape {values.shape}; expected ({len(names)},) for {', '.join(names)}"
-            )
-        return dict(zip(names, values.tolist(), strict=True))
-
-    def vector(self, theta=None) -> np.ndarray:
-        """A parameter mapping (default: the system's own values, all needed) as a vector.
-
-        Raises
-        ------
-        HosidInputError
-            If a parameter is missing (e.g. a simulation of a file without all values).
-        """
-        if theta is None:
-            given = dict(self.values)
-            missing = [n for n in self.param_names if n not in given]
-            if missing:
-                raise HosidInputError(f"values missing for {', '.join(missing)}")
-            theta = given
-        if isinstance(theta, Mapping):
-            return np.array(list(self.params(theta).values()))
-        th = np.asarray(theta, dtype=float)
-        if th.shape[-1:] != (len(self.param_names),):
-            raise HosidInputError(
-                f"theta has shape {th.shape}; expected (..., {len(self.param_names)})"
-            )
-        return th
-
-    def mass_vector(self, theta) -> np.ndarray:
-        """:math:`m`, ``(..., n)``: known masses and those of ``theta`` (``(..., p)``)."""
-        free = tuple(d for d, m in zip(self.dofs, self.masses, strict=True) if m is None)
-        known = np.array([0.0 if m is None else m for m in self.masses])
-        return known + self._by_dof(self.vector(theta), free, "mass")
-
-    def levels(self, theta) -> np.ndarray:
-        r""":math:`S_{0,d}`, ``(..., n)``: 0 on the dofs without a force."""
-        return self._by_dof(self.vector(theta), self.driven, "S0")
-
-    def noise_levels(self, theta) -> np.ndarray:
-        r""":math:`N_d`, ``(..., n)``: 0 on the channels without a sensor noise."""
-        return self._by_dof(self.vector(theta), self.sensor_noise or (), "N")
-
-    def _by_dof(self, th: np.ndarray, dofs: tuple[str, ...], kind: str) -> np.ndarray:
-        out = np.zeros((*th.shape[:-1], self.n))
-        names = self.param_names
-        for d in dofs:
-            name = kind if self.single_names else f"{kind}[{d}]"
-            out[..., self.dofs.index(d)] = th[..., names.index(name)]
-        return out
 
     # --------------------------------------------------------------- equations
     def _state(self, q, qdot) -> tuple[np.ndarray, np.ndarray]:

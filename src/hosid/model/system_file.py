@@ -12,6 +12,8 @@ library (:mod:`hosid.model.system` for the equations):
     sensor_noise = true              # optional: each channel's white noise level N[dof]
                                      # a parameter (or a list of dofs; default: when a
                                      # linear system's accelerations need it)
+    excitation = "narrowband_excitation"  # optional: the driven forces' shared spectral
+                                     # shape (parameters wf, zf; default white)
 
     [[element]]
     between = ["ground", "x1"]
@@ -60,7 +62,9 @@ MEASURED_KINDS = MEASURED
 #: Names a degree of freedom may not take (the ground, a record file's other columns).
 RESERVED = (GROUND, "t", "dt", "segment", "dofs", "measured")
 #: The keys of a system file and of one of its elements.
-KEYS = ("dofs", "element", "masses", "driven", "measured", "sensor_noise", "values")
+KEYS = ("dofs", "element", "masses", "driven", "measured", "sensor_noise", "excitation", "values")
+#: The spectral shapes a system's forces may share (:mod:`hosid.model.excitation`).
+SHAPES = ("coloured_excitation", "narrowband_excitation")
 ELEMENT_KEYS = ("between", "terms")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -223,6 +227,24 @@ def check_sensor_noise(noise: Any, dofs: Sequence[str]) -> tuple[str, ...] | Non
     return tuple(d for d in dofs if d in noise)
 
 
+def check_excitation(excitation: Any) -> tuple:
+    """The shape term the driven dofs' forces share (one of :data:`SHAPES`, by name or as
+    a term), as a tuple: empty for ``None``, ``"white"`` or an empty list.
+    """
+    if excitation is None or excitation == "white":
+        return ()
+    items = [excitation] if isinstance(excitation, str) else excitation
+    if not isinstance(items, Sequence):
+        raise HosidInputError(f"excitation must be 'white' or one of {', '.join(SHAPES)}")
+    terms = tuple(get_term(t) if isinstance(t, str) and t in SHAPES else t for t in items)
+    bad = [t for t in terms if getattr(t, "name", None) not in SHAPES]
+    if bad or len(terms) > 1:
+        what = f"{bad[0]!r} is not" if bad else "several shapes are not"
+        raise HosidInputError(f"excitation: {what} a system's force shape; give 'white' or one "
+                              f"of {', '.join(SHAPES)}")  # fmt: skip
+    return terms
+
+
 def check_values(values: Mapping, names: Sequence[str]) -> tuple[tuple[str, float], ...]:
     """Parameter values by name as ``(name, value)`` pairs in ``names`` order."""
     unknown = [k for k in values if k not in names]
@@ -301,6 +323,7 @@ def system_from_dict(data: Mapping[str, Any], source: str = "") -> System:
             driven=data.get("driven", ()),
             measured=data.get("measured", ()),
             sensor_noise=data.get("sensor_noise"),
+            excitation=data.get("excitation", ()),
             values=data.get("values", {}),
         )
     except HosidInputError as exc:

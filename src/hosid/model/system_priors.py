@@ -13,7 +13,9 @@ log-uniform on :math:`[10^{-2}, 10^2]` (the first dof's mass is 1), and a driven
 level :math:`S_{0,d}` log-uniform over four decades each side of its acceleration's
 rough level times the square of its known mass (two decades, as the single oscillator's,
 when the mass is known; a factor :math:`10^2` more each side when it is not, which the
-mass's range needs).  A channel's sensor noise level :math:`N_d` is log-uniform from
+mass's range needs).  The forces' shared shape (:attr:`~hosid.model.system.System.excitation`)
+takes its term's priors at the scales of the element whose relative motion is slowest.  A
+channel's sensor noise level :math:`N_d` is log-uniform from
 :math:`10^{-8}` to :math:`10^2` times its acceleration's rough level (a noise may hide
 all of a dof's motion, or hardly any).
 
@@ -106,6 +108,12 @@ def system_priors(system: System, scales: SystemScales, *, constrained: bool = T
         base = scales.levels[k] * (masses[k] ** 2 if known else 1.0)
         wide = 1e2 if known else 1e4
         priors[next(names)] = LogUniform(base / wide, wide * base)
+    if system.excitation:  # at the scales of the element of the slowest relative motion
+        slow = min(scales.elements, key=lambda sc: sc.omega_n)
+        for t in system.excitation:
+            shape = t.default_priors(slow)
+            for p in t.params:
+                priors[next(names)] = shape[p]
     for d in system.sensor_noise or ():
         level = scales.levels[system.dofs.index(d)]
         priors[next(names)] = LogUniform(NOISE_RANGE[0] * level, NOISE_RANGE[1] * level)
