@@ -612,3 +612,6 @@ def test_estimate_reads_a_single_acceleration_channel(tmp_path, capsys):
     assert cli.main(["estimate", str(path), "--measured", "acceleration"]) == 0
     out = capsys.readouterr().out
     assert "System(x; ground-x" in out and out.count("\na2 ") == 1
+    # its linear terms' mode, sqrt(a2) / 2 pi = 0.796 Hz, with the delta method's sd
+    mode = out.split("modes of the linear terms")[1].splitlines()[3].split()
+    assert mode[0] == "1" and abs(float(mode[1]) / (5.0 / (2 * np.pi)) - 1) < 0.05

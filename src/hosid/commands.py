@@ -96,6 +96,21 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def _estimate_modes(est, cov) -> list | None:
+    """A system's modes of its linear terms at the estimate (delta method), printed."""
+    from hosid.model.modal import estimate_modes, small_slopes
+    from hosid.model.system import System
+
+    if not isinstance(est.model, System):
+        return None
+    modes = estimate_modes(est.model, est.theta, cov, small_slopes(est.model))
+    rows = [[str(j + 1), *(fmt(m[k][s]) for k in ("frequency_hz", "damping_ratio")
+                           for s in ("mean", "sd"))] for j, m in enumerate(modes)]  # fmt: skip
+    print("modes of the linear terms (small amplitude; sd by the delta method):")
+    print(table(["mode", "f (Hz)", "sd", "zeta", "sd"], rows) if rows else "none underdamped")
+    return modes
+
+
 def cmd_estimate(args) -> int:
     """``hosid estimate``: the calibrated mode, its sd and 90 % interval, no sampling."""
     from hosid.inference import components_for, estimate
@@ -147,6 +162,7 @@ def cmd_estimate(args) -> int:
         for n, v, s in zip(names, values, sd, strict=True)
     ]
     print(table(["parameter", "estimate", "sd", "5%", "95%"], rows))
+    modes = _estimate_modes(est, cal.cov)
     if args.json:
         from hosid.output.files import write_atomic
         from hosid.output.results import jsonable
@@ -166,6 +182,7 @@ def cmd_estimate(args) -> int:
             "hansen": est.test,
             "checks": [c.as_dict() for c in [*est.checks, cal.check()]],
             "state": est.state.describe(),
+            **({"modes": modes} if modes is not None else {}),
         }
         write_atomic(Path(args.json), json.dumps(jsonable(data), indent=2) + "\n")
     return 0

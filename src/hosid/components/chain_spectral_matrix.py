@@ -47,12 +47,11 @@ the taper's leakage widens the peaks (no correction).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, signal
+from scipy import signal
 
 from ..chain_state import ChainState
 from ..errors import HosidInputError
@@ -61,7 +60,15 @@ from ..spectra.windows import get_window
 from .base import Moments
 from .chain_spectral import chain_band
 
-__all__ = ["GROUP", "LINEAR", "ChainSpectralMatrix", "check_noise_model", "spectral_pilot"]
+__all__ = [
+    "GROUP",
+    "LINEAR",
+    "ChainSpectralMatrix",
+    "band_periodogram",
+    "check_noise_model",
+    "periodogram",
+    "spectral_matrix",
+]
 
 #: Neighbouring bins in one row of the influence.
 GROUP = 4
@@ -258,129 +265,3 @@ class ChainSpectralMatrix:
         info = {"band_rad_s": [float(omega.min()), float(omega.max())], "bins": int(omega.size),
                 "groups": G, "covariance": "Whittle's (model)"}  # fmt: skip
         return Moments(self.name, labels, mean, per - per.mean(axis=0), info, cov)
-
-
-def spectral_pilot(state: ChainState, system: System, theta, lower, upper, *, band=None):
-    r"""Whittle's maximum within ``[lower, upper]`` from two starts, the better one: ``theta``
-    (if given) and a uniform one (:func:`uniform_start`), each with every noise level at
-    its channel's acceleration floor; L-BFGS-B in the logarithms of the positive
-    parameters, on the periodogram (``band``, default :func:`periodogram`) averaged over
-    each group of bins (the rounds then solve on every bin).  Under a shaped force, the
-    white force's maximum first, and from it with the shape at :func:`shape_start` (the
-    shape's grid holds nearly white shapes, so the result is at least as likely as the
-    white force's: from the starts directly, the building's record gave a worse maximum).
-    A record without sensor noise leaves every :math:`S(\omega)` of a force at fewer dofs
-    than channels nearly singular: the search is then ill-conditioned (a simulated
-    two-dof chain under a narrow-band force: the shape's parameters far off, Hansen's J
-    in the thousands).
-    """
-    check_noise_model(system, state)
-    P = periodogram(state, system) if band is None else band
-    starts = [uniform_start(state, system)]
-    starts = starts if theta is None else [np.array(theta, dtype=float), *starts]
-    for th in starts:
-        for d in system.sensor_noise:
-            th[system.index(f"N[{d}]")] = state.channels[system.dofs.index(d)].band.floor
-    if system.excitation:
-        white = dataclasses.replace(system, excitation=(), values=())
-        keep = [system.index(n) for n in white.param_names]
-        sub = None if theta is None else np.asarray(theta, dtype=float)[keep]
-        starts = [np.zeros(len(system.param_names))]
-        starts[0][keep] = spectral_pilot(state, white, sub, lower[keep], upper[keep], band=P)
-    G = int(P.group.max()) + 1
-    count = np.bincount(P.group, minlength=G)
-    omega = np.bincount(P.group, P.omega, G) / count
-    avg = np.zeros((G, *P.matrix.shape[1:]), dtype=complex)
-    np.add.at(avg, P.group, P.matrix)
-    avg = avg / count[:, None, None]
-    logs = np.zeros(len(system.param_names), dtype=bool)
-    logs[system.log_params] = True
-    lo = np.where(logs, np.log(np.maximum(lower, 1e-300)), lower)
-    hi = np.where(logs, np.log(upper), upper)
-
-    def nll(z):  # (..., p) -> (...)
-        S = spectral_matrix(system, np.where(logs, np.exp(np.minimum(z, 700.0)), z), omega,
-                            state.dt)  # fmt: skip
-        sign, logdet = np.linalg.slogdet(S)
-        tr = np.einsum("...kij,kji->...k", np.linalg.inv(S), avg).real
-        out = np.sum(logdet.real + tr, axis=-1)
-        return np.where(np.all(sign.real > 0, axis=-1) & np.isfinite(out), out, 1e300)
-
-    def minimize(z0, free):  # over the parameters ``free``, the others held
-        def fun(u):  # the value and its forward-difference gradient, in one batch
-            z = np.repeat(z0[None], u.size + 1, axis=0)
-            h = 1e-6 * np.maximum(np.abs(u), 1.0)
-            z[:, free] = np.vstack([u, u + np.diag(h)])
-            f = nll(z)
-            return f[0], (f[1:] - f[0]) / h
-
-        got = optimize.minimize(fun, z0[free], jac=True, method="L-BFGS-B",
-                                bounds=list(zip(lo[free], hi[free], strict=True)),
-                                options={"maxiter": 5000, "maxfun": 20000})  # fmt: skip
-        z = z0.copy()
-        z[free] = got.x
-        return z, got.fun
-
-    best = None
-    for th in starts:
-        th = np.clip(shape_start(state, system, th, lower, upper, nll, logs), lower, upper)
-        got = minimize(np.where(logs, np.log(np.maximum(th, 1e-300)), th), np.arange(th.size))
-        if best is None or got[1] < best[1]:
-            best = got
-    return np.where(logs, np.exp(best[0]), best[0])
-
-
-#: Grid points per parameter of a shaped force's start (:func:`shape_start`).
-SHAPE_GRID = 9
-
-
-def shape_start(state, system: System, theta, lower, upper, nll, logs) -> np.ndarray:
-    """``theta`` with the forces' shape parameters (if any) at the best of a grid over
-    their supports (:data:`SHAPE_GRID` points each, log-spaced for a log parameter), the
-    levels rescaled at each so that the force's level at the channels' largest peak stays
-    ``theta``'s; ``nll`` is Whittle's on the groups' averages (:func:`spectral_pilot`).
-    """
-    th = np.array(theta, dtype=float)
-    idx = [i for _, ix in system.spectrum.terms for i in ix]
-    if not idx:
-        return th
-    axes = [np.exp(np.linspace(np.log(lower[i]), np.log(upper[i]), SHAPE_GRID)) if logs[i]
-            else np.linspace(lower[i], upper[i], SHAPE_GRID) for i in idx]  # fmt: skip
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(idx))
-    cand = np.repeat(th[None], grid.shape[0], axis=0)
-    cand[:, idx] = grid
-    levels = [system.index(f"S0[{d}]") for d in system.driven]
-    cand[:, levels] /= system.spectrum.shape(np.array([peak_frequency(state, system)]), cand)
-    z = np.where(logs, np.log(np.maximum(cand, 1e-300)), cand)
-    return cand[int(np.argmin(nll(z)))]
-
-
-def peak_frequency(state: ChainState, system: System) -> float:
-    """The largest peak of the channels' summed periodogram over the band (rad/s)."""
-    P = periodogram(state, system)
-    power = np.einsum("kii->k", P.matrix).real
-    return float(P.omega[np.argmax(np.convolve(power, np.ones(2 * GROUP + 1), "same"))])
-
-
-def uniform_start(state: ChainState, system: System, zeta: float = 0.02) -> np.ndarray:
-    r"""Every element's stiffness :math:`k` and damping :math:`c` alike, unknown masses 1,
-    each driven level its channel's rough level times its mass squared: the slowest mode
-    of :math:`M\ddot q + cL\dot q + kL q` (:math:`L = B^{\mathsf T}B`, eigenvalue
-    :math:`\mu_1` of :math:`M^{-1}L`) at the largest peak of the channels' summed
-    periodogram over the band, damping ratio ``zeta``: :math:`k = \omega^2/\mu_1`,
-    :math:`c = 2\zeta\omega/\mu_1`.
-    """
-    peak = peak_frequency(state, system)
-    th = np.zeros(len(system.param_names))
-    for name in system.param_names:
-        if name.startswith("mass["):
-            th[system.index(name)] = 1.0
-    m = system.mass_vector(th)
-    B = system.incidence
-    mu = float(np.min(np.linalg.eigvals((B.T @ B) / m[:, None]).real))
-    for col, (_, t) in enumerate(system.columns):
-        th[col] = peak**2 / mu if t.name == "linear_stiffness" else 2 * zeta * peak / mu
-    for d in system.driven:
-        i = system.dofs.index(d)
-        th[system.index(f"S0[{d}]")] = state.channels[i].scales.S0 * m[i] ** 2
-    return th

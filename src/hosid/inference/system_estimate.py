@@ -29,7 +29,9 @@ noise (``sensor_noise = true``, or not given and the ``sensor_noise`` check warn
 (:class:`~hosid.components.chain_spectral_matrix.ChainSpectralMatrix`, Whittle's score):
 the identities, moments of the twice-integrated channels, are biased by the noise, and for
 a linear Gaussian system the spectral matrix holds all the information.  Its pilot is
-Whittle's maximum (:func:`~hosid.components.chain_spectral_matrix.spectral_pilot`).
+Whittle's maximum (:func:`~hosid.inference.spectral_pilot.spectral_pilot`); under a
+shaped force its dampers' coefficients at least 0
+(:func:`~hosid.inference.spectral_pilot.damping_floor`).
 
 **Blocks.**  A system of several dofs has many equations for its blocks: :math:`k = 28`
 for the three-dof chain of ``analyses/chain_study.py``, whose 2000 s records the single
@@ -58,11 +60,7 @@ from ..components.chain_cumulant import ChainKurtosis
 from ..components.chain_features import noise_shares, restoration, system_scales
 from ..components.chain_identities import ChainIdentities, rows
 from ..components.chain_spectral import ChainJ2, ChainLevel
-from ..components.chain_spectral_matrix import (
-    ChainSpectralMatrix,
-    check_noise_model,
-    spectral_pilot,
-)
+from ..components.chain_spectral_matrix import ChainSpectralMatrix, check_noise_model
 from ..errors import HosidInputError
 from ..model.system import System
 from ..record import Record
@@ -72,6 +70,7 @@ from .chain_pilot import chain_pilot
 from .estimate import Estimate
 from .gmm import hansen
 from .solutions import alternatives, bounds, capped, solve_rounds, typical_scale
+from .spectral_pilot import damping_floor, spectral_pilot
 
 __all__ = [
     "BLOCKS_PER_EQUATION",
@@ -243,6 +242,8 @@ def estimate_system(
         support,
         lambda: system.default_priors(system_scales(state, system), constrained=False),
     )
+    if system.excitation and any(isinstance(c, ChainSpectralMatrix) for c in components):
+        lower = damping_floor(system, lower)
     if start is not None:
         theta0 = np.array(start, dtype=float)
     elif system.sensor_noise or system.excitation:  # from the identities' pilot if any

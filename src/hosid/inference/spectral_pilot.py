@@ -1,0 +1,178 @@
+r"""The pilot of a linear system's channels' spectral matrix: Whittle's maximum, searched.
+
+:class:`hosid.components.chain_spectral_matrix.ChainSpectralMatrix` is prepared at a
+pilot; its rounds only refine it, so the pilot must sit in the right basin of Whittle's
+likelihood, whose narrow resonances make it many-peaked.  :func:`spectral_pilot` maximises
+it by L-BFGS-B from a few starts (:func:`uniform_start`, the identities' pilot, and under
+a shaped force the white force's maximum with the shape from a grid,
+:func:`shape_start`), within the priors' supports and with every damper's coefficient at
+least 0 (:func:`damping_floor`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy import optimize
+
+from ..chain_state import ChainState
+from ..components.chain_spectral_matrix import (
+    GROUP,
+    check_noise_model,
+    periodogram,
+    spectral_matrix,
+)
+from ..model.system import System
+
+__all__ = ["BROAD", "SHAPE_GRID", "damping_floor", "spectral_pilot", "uniform_start"]
+
+
+def damping_floor(system: System, lower: np.ndarray) -> np.ndarray:
+    r"""``lower`` with every damping coefficient at least 0: eq (65) per element of a
+    linear system, which the search keeps because Whittle's likelihood hardly sees the
+    damping's sign (:math:`C \to -C` conjugates :math:`H`, so :math:`S \to S^{\mathsf T}`:
+    only the cross-spectra's small imaginary parts tell them apart).  Used under a shaped
+    force (:mod:`hosid.inference.system_estimate`): on 20 records of
+    ``analyses/system_excitation_study.py``, with neither it nor the broad start
+    (:data:`BROAD`) 6 ended far from the truth, one with both dampers negative; with both,
+    1.  On the white force's noisy two-dof chain of ``tests/test_sensor_noise.py`` it
+    led the search to a heavy second mass, so the white force's search goes without it.
+    """
+    out = np.array(lower, dtype=float)
+    for col, (_, t) in enumerate(system.columns):
+        if t.name == "linear_damping":
+            out[col] = max(out[col], 0.0)
+    return out
+
+
+def spectral_pilot(state: ChainState, system: System, theta, lower, upper, *, band=None):
+    r"""Whittle's maximum within ``[lower, upper]`` from a few starts, the best one: ``theta``
+    (if given) and a uniform one (:func:`uniform_start`), each with every noise level at
+    its channel's acceleration floor; L-BFGS-B in the logarithms of the positive
+    parameters, on the periodogram (``band``, default :func:`periodogram`) averaged over
+    each group of bins (the rounds then solve on every bin).  Under a shaped force, the
+    white force's maximum first, and from it as another start, and a second uniform start
+    with broad resonances (:data:`BROAD`), each start with the shape at
+    :func:`shape_start` (the shape's grid holds nearly white shapes, so the result is at
+    least as likely as the white force's: from the two first starts alone the building's
+    record gave a worse maximum; :func:`damping_floor` for the rest).
+    A record without sensor noise leaves every :math:`S(\omega)` of a force at fewer dofs
+    than channels nearly singular: the search is then ill-conditioned (a simulated
+    two-dof chain under a narrow-band force: the shape's parameters far off, Hansen's J
+    in the thousands).
+    """
+    check_noise_model(system, state)
+    P = periodogram(state, system) if band is None else band
+    starts = [uniform_start(state, system, z) for z in ((0.02, BROAD) if system.excitation
+                                                         else (0.02,))]  # fmt: skip
+    starts = starts if theta is None else [np.array(theta, dtype=float), *starts]
+    for th in starts:
+        for d in system.sensor_noise:
+            th[system.index(f"N[{d}]")] = state.channels[system.dofs.index(d)].band.floor
+    if system.excitation:
+        white = dataclasses.replace(system, excitation=(), values=())
+        keep = [system.index(n) for n in white.param_names]
+        sub = None if theta is None else np.asarray(theta, dtype=float)[keep]
+        starts.insert(0, np.zeros(len(system.param_names)))
+        starts[0][keep] = spectral_pilot(state, white, sub, lower[keep], upper[keep], band=P)
+    G = int(P.group.max()) + 1
+    count = np.bincount(P.group, minlength=G)
+    omega = np.bincount(P.group, P.omega, G) / count
+    avg = np.zeros((G, *P.matrix.shape[1:]), dtype=complex)
+    np.add.at(avg, P.group, P.matrix)
+    avg = avg / count[:, None, None]
+    logs = np.zeros(len(system.param_names), dtype=bool)
+    logs[system.log_params] = True
+    lo = np.where(logs, np.log(np.maximum(lower, 1e-300)), lower)
+    hi = np.where(logs, np.log(upper), upper)
+
+    def nll(z):  # (..., p) -> (...)
+        S = spectral_matrix(system, np.where(logs, np.exp(np.minimum(z, 700.0)), z), omega,
+                            state.dt)  # fmt: skip
+        sign, logdet = np.linalg.slogdet(S)
+        tr = np.einsum("...kij,kji->...k", np.linalg.inv(S), avg).real
+        out = np.sum(logdet.real + tr, axis=-1)
+        return np.where(np.all(sign.real > 0, axis=-1) & np.isfinite(out), out, 1e300)
+
+    def minimize(z0, free):  # over the parameters ``free``, the others held
+        def fun(u):  # the value and its forward-difference gradient, in one batch
+            z = np.repeat(z0[None], u.size + 1, axis=0)
+            h = 1e-6 * np.maximum(np.abs(u), 1.0)
+            z[:, free] = np.vstack([u, u + np.diag(h)])
+            f = nll(z)
+            return f[0], (f[1:] - f[0]) / h
+
+        got = optimize.minimize(fun, z0[free], jac=True, method="L-BFGS-B",
+                                bounds=list(zip(lo[free], hi[free], strict=True)),
+                                options={"maxiter": 5000, "maxfun": 20000})  # fmt: skip
+        z = z0.copy()
+        z[free] = got.x
+        return z, got.fun
+
+    best = None
+    for th in starts:
+        th = np.clip(shape_start(state, system, th, lower, upper, nll, logs), lower, upper)
+        got = minimize(np.where(logs, np.log(np.maximum(th, 1e-300)), th), np.arange(th.size))
+        if best is None or got[1] < best[1]:
+            best = got
+    return np.where(logs, np.exp(best[0]), best[0])
+
+
+#: The uniform start's damping ratio under a shaped force: broad resonances smooth
+#: Whittle's likelihood, whose narrow peaks trap the search (:func:`spectral_pilot`).
+BROAD = 0.2
+#: Grid points per parameter of a shaped force's start (:func:`shape_start`).
+SHAPE_GRID = 9
+
+
+def shape_start(state, system: System, theta, lower, upper, nll, logs) -> np.ndarray:
+    """``theta`` with the forces' shape parameters (if any) at the best of a grid over
+    their supports (:data:`SHAPE_GRID` points each, log-spaced for a log parameter), the
+    levels rescaled at each so that the force's level at the channels' largest peak stays
+    ``theta``'s; ``nll`` is Whittle's on the groups' averages (:func:`spectral_pilot`).
+    """
+    th = np.array(theta, dtype=float)
+    idx = [i for _, ix in system.spectrum.terms for i in ix]
+    if not idx:
+        return th
+    axes = [np.exp(np.linspace(np.log(lower[i]), np.log(upper[i]), SHAPE_GRID)) if logs[i]
+            else np.linspace(lower[i], upper[i], SHAPE_GRID) for i in idx]  # fmt: skip
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(idx))
+    cand = np.repeat(th[None], grid.shape[0], axis=0)
+    cand[:, idx] = grid
+    levels = [system.index(f"S0[{d}]") for d in system.driven]
+    cand[:, levels] /= system.spectrum.shape(np.array([peak_frequency(state, system)]), cand)
+    z = np.where(logs, np.log(np.maximum(cand, 1e-300)), cand)
+    return cand[int(np.argmin(nll(z)))]
+
+
+def peak_frequency(state: ChainState, system: System) -> float:
+    """The largest peak of the channels' summed periodogram over the band (rad/s)."""
+    P = periodogram(state, system)
+    power = np.einsum("kii->k", P.matrix).real
+    return float(P.omega[np.argmax(np.convolve(power, np.ones(2 * GROUP + 1), "same"))])
+
+
+def uniform_start(state: ChainState, system: System, zeta: float = 0.02) -> np.ndarray:
+    r"""Every element's stiffness :math:`k` and damping :math:`c` alike, unknown masses 1,
+    each driven level its channel's rough level times its mass squared: the slowest mode
+    of :math:`M\ddot q + cL\dot q + kL q` (:math:`L = B^{\mathsf T}B`, eigenvalue
+    :math:`\mu_1` of :math:`M^{-1}L`) at the largest peak of the channels' summed
+    periodogram over the band, damping ratio ``zeta``: :math:`k = \omega^2/\mu_1`,
+    :math:`c = 2\zeta\omega/\mu_1`.
+    """
+    peak = peak_frequency(state, system)
+    th = np.zeros(len(system.param_names))
+    for name in system.param_names:
+        if name.startswith("mass["):
+            th[system.index(name)] = 1.0
+    m = system.mass_vector(th)
+    B = system.incidence
+    mu = float(np.min(np.linalg.eigvals((B.T @ B) / m[:, None]).real))
+    for col, (_, t) in enumerate(system.columns):
+        th[col] = peak**2 / mu if t.name == "linear_stiffness" else 2 * zeta * peak / mu
+    for d in system.driven:
+        i = system.dofs.index(d)
+        th[system.index(f"S0[{d}]")] = state.channels[i].scales.S0 * m[i] ** 2
+    return th
