@@ -178,7 +178,8 @@ def _fit_row(tree, ref) -> dict:
     p, cal, found = s["parameters"].values(), s["calibration"]["hansen"], s["modes"]
     row = {"converged": s["converged"], "r_hat": f"{max(x['r_hat'] for x in p):.3f}",
            "ess": f"{min(min(x['ess_bulk'], x['ess_tail']) for x in p):.0f}",
-           "hansen": f"J = {cal['J']:.4g} on {cal['df']} df, p = {cal['p_value']:.2g}",
+           "hansen": f"J = {cal['J']:.4g} on {cal['df']} df"
+           + ("" if cal["p_value"] is None else f", p = {cal['p_value']:.2g}"),
            "verdicts": ", ".join(f"{c['name']} {c['status']}" for c in s["checks"]),
            "modes": ", ".join(f"{m['frequency_hz']['mean']:.3g}" for m in found)
            or "none: no posterior draw has every mode underdamped"}  # fmt: skip
