@@ -95,28 +95,21 @@ def spectral_pilot(state: ChainState, system: System, theta, lower, upper, *, ba
         out = np.sum(logdet.real + tr, axis=-1)
         return np.where(np.all(sign.real > 0, axis=-1) & np.isfinite(out), out, 1e300)
 
-    def minimize(z0, free):  # over the parameters ``free``, the others held
-        def fun(u):  # the value and its forward-difference gradient, in one batch
-            z = np.repeat(z0[None], u.size + 1, axis=0)
-            h = 1e-6 * np.maximum(np.abs(u), 1.0)
-            z[:, free] = np.vstack([u, u + np.diag(h)])
-            f = nll(z)
-            return f[0], (f[1:] - f[0]) / h
-
-        got = optimize.minimize(fun, z0[free], jac=True, method="L-BFGS-B",
-                                bounds=list(zip(lo[free], hi[free], strict=True)),
-                                options={"maxiter": 5000, "maxfun": 20000})  # fmt: skip
-        z = z0.copy()
-        z[free] = got.x
-        return z, got.fun
+    def fun(z):  # the value and its forward-difference gradient, in one batch
+        h = 1e-6 * np.maximum(np.abs(z), 1.0)
+        f = nll(np.vstack([z, z + np.diag(h)]))
+        return f[0], (f[1:] - f[0]) / h
 
     best = None
     for th in starts:
         th = np.clip(shape_start(state, system, th, lower, upper, nll, logs), lower, upper)
-        got = minimize(np.where(logs, np.log(np.maximum(th, 1e-300)), th), np.arange(th.size))
-        if best is None or got[1] < best[1]:
+        z0 = np.where(logs, np.log(np.maximum(th, 1e-300)), th)
+        got = optimize.minimize(fun, z0, jac=True, method="L-BFGS-B",
+                                bounds=list(zip(lo, hi, strict=True)),
+                                options={"maxiter": 5000, "maxfun": 20000})  # fmt: skip
+        if best is None or got.fun < best.fun:
             best = got
-    return np.where(logs, np.exp(best[0]), best[0])
+    return np.where(logs, np.exp(best.x), best.x)
 
 
 #: The uniform start's damping ratio under a shaped force: broad resonances smooth
