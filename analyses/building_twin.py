@@ -114,9 +114,10 @@ def twin(ref: list[dict], work: Path, floors) -> list[str]:
 
 def coloured_twin(ref: list[dict], work: Path, floors) -> list[str]:
     """The twin driven at the roof by the narrow-band force :data:`SHAKER` with the
-    building's sensor noise (module docstring), estimated with a white force (the file
-    silent on the shape) and with the shaped one."""
-    white = hosid.System.from_toml(system_file(["x5"], False, work / "twin-noise.toml"))
+    building's sensor noise (module docstring), estimated with a white force
+    (``excitation = "white"``) and with the shaped one."""
+    white = hosid.System.from_toml(system_file(["x5"], False, work / "twin-white.toml",
+                                               shape="white"))  # fmt: skip
     shaped = hosid.System.from_toml(system_file(["x5"], False, work / "twin-shaped.toml",
                                                 shape="narrowband_excitation"))  # fmt: skip
     quiet = dataclasses.replace(shaped, sensor_noise=False)

@@ -93,10 +93,16 @@ def test_summary_over_draws():
 
 
 def test_overdamped_draws_are_left_out():
-    theta = np.stack([THETA2, THETA2 * [100, 1, 1, 1, 1, 1, 1]])  # the second overdamped
-    omega, _, _ = modal_draws(TWO, theta, small_slopes(TWO))
-    assert omega.shape == (1, 2)
-    assert summarize_modes(TWO, theta[1:], small_slopes(TWO)) == []
+    """Draws with fewer underdamped modes than most are left out; where every draw has an
+    overdamped mode, the others are summarised (the building's top storey)."""
+    over = THETA2 * [100, 1, 1, 1, 1, 1, 1]  # its first mode overdamped
+    assert modes(TWO, over).omega.size == 1
+    omega, _, _ = modal_draws(TWO, np.stack([THETA2, over, THETA2]), small_slopes(TWO))
+    assert omega.shape == (2, 2)
+    (one,) = summarize_modes(TWO, np.stack([over, over]), small_slopes(TWO))
+    mode = modes(TWO, over)
+    assert one["frequency_hz"]["mean"] == pytest.approx(mode.omega[0] / (2 * math.pi))
+    assert one["draws"] == 2
 
 
 def test_estimate_modes_by_the_delta_method():

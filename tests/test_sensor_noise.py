@@ -160,3 +160,25 @@ def test_the_twin_study_runs(tmp_path):
     assert [r["quantity"] for r in got["rows"]][-4:] == ["f1", "f2", "zeta1", "zeta2"]
     assert all(np.isfinite(r["mean_z"]) for r in got["rows"])
     assert "| a2[x4-x5] |" in (tmp_path / "sensor_noise.md").read_text()
+
+
+def test_a_fit_starts_from_the_maximum_with_dampers_at_least_zero():
+    """An undamped upper element: Whittle's maximum of this 500 s record puts its damper
+    below zero, outside eq (65); the fit's start is searched again with every damper at
+    least 0, from the same state, and says so in the notes."""
+    from hosid.inference.fit import _floored
+    from hosid.inference.options import FitOptions
+
+    values = {**VALUES, "a1[x1-x2]": 0.0}
+    rec = simulate_chain(NOISY, values, duration=500.0, dt=DT, rng=np.random.default_rng(0))
+    model = System(("x1", "x2"), ELEMENTS, driven=("x2",), measured="acceleration",
+                   sensor_noise=True, excitation="white")  # fmt: skip
+    est = hosid.estimate(rec, model)
+    priors = est.model.default_priors(est.scales())
+    assert est.theta[2] < 0 and not np.isfinite(priors.ln_prob(est.theta[None])[0])
+    got = _floored(est, priors, FitOptions())
+    assert got.state is est.state
+    assert np.all(got.theta[[0, 2]] >= 0) and got.theta[2] < 0.05
+    assert got.theta[3] == pytest.approx(15.0, rel=0.05)
+    assert "every damper's coefficient at least 0" in got.notes[-1]
+    assert _floored(est, priors, FitOptions(constrained=False)) is est

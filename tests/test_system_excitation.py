@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+import hosid
 from hosid.components.chain_spectral_matrix import band_periodogram, spectral_matrix
 from hosid.errors import HosidInputError
 from hosid.inference.system_estimate import estimate_system, system_components
@@ -106,3 +107,22 @@ def test_a_shaped_force_needs_the_spectral_matrix():
                    excitation="narrowband_excitation")  # fmt: skip
     with pytest.raises(HosidInputError, match=r"shaped force .* linear systems only"):
         estimate_system(rec, cubic, force=True)
+
+
+def test_the_record_chooses_the_shape_when_the_file_is_silent():
+    """A file silent on the shape: the narrow-band record rejects the white force (its
+    deviance falls by far more than 13.8) and gets the shape; a white one (the same chain
+    driven by white noise) keeps the white force; ``excitation = "white"`` is not asked."""
+    silent = dataclasses.replace(SHAPED, excitation=None, values=())
+    assert silent.excitation is None and "wf" not in silent.param_names
+    rec = simulate_chain(SHAPED, duration=1000.0, dt=DT, rng=np.random.default_rng(3))
+    est = hosid.estimate(rec, silent)
+    assert [t.name for t in est.model.excitation] == ["narrowband_excitation"]
+    assert "the record rejects a white force" in est.notes[-1]
+    assert est.theta[est.model.index("wf")] == pytest.approx(4.0, rel=0.1)
+    white = {k: v for k, v in VALUES.items() if k not in ("wf", "zf")}
+    plain = dataclasses.replace(silent, excitation="white")
+    rec = simulate_chain(plain, white, duration=1000.0, dt=DT, rng=np.random.default_rng(3))
+    est = hosid.estimate(rec, silent)
+    assert est.model.excitation == () and "white force kept" in est.notes[-1]
+    assert not any("white force" in n for n in hosid.estimate(rec, plain).notes)

@@ -20,6 +20,7 @@ one arviz ``DataTree`` (:mod:`hosid.output.results`).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -121,6 +122,7 @@ def fit(
         priors = structure.default_priors(est.scales(), constrained=o.constrained)
     elif priors.names != structure.param_names:
         raise HosidInputError(f"priors must be for {', '.join(structure.param_names)} in order")
+    est = _floored(est, priors, o)
     cal = calibrate(est)
     chain, rng, kde = _sample(record, est, cal, priors, o, cost)
     timings["sampling"] = time.perf_counter() - t0 - sum(timings.values())
@@ -235,6 +237,25 @@ def _sample(record: Record, est, cal, priors, o: FitOptions, cost):
             raise
         raise HosidInputError(f"{exc} ({_outside(priors, names, cal.theta)})") from None
     return chain, rng, kde
+
+
+def _floored(est, priors, o: FitOptions):
+    """``est``, or, when it breaks eq (65) and is a linear system's spectral-matrix maximum
+    (Whittle's likelihood hardly sees the dampers' sign:
+    :func:`~hosid.inference.spectral_pilot.damping_floor`), the maximum searched again with
+    every damper's coefficient at least 0, from the same state (the record is not read
+    again), so that the constrained fit has an admissible start.
+    """
+    from ..components.chain_spectral_matrix import ChainSpectralMatrix
+    from .system_estimate import estimate_system
+
+    spectral = any(m.component == ChainSpectralMatrix.name for m in est.ql.moments)
+    if not (spectral and o.constrained) or np.isfinite(priors.ln_prob(est.theta[None])[0]):
+        return est
+    got = estimate_system(est.state, est.model, checks=est.checks, support=o.priors, floor=True)
+    note = ("Whittle's maximum puts a damper below zero (eq 65): the fit starts from its "
+            "maximum with every damper's coefficient at least 0")  # fmt: skip
+    return dataclasses.replace(got, notes=[*got.notes, note])
 
 
 def walkers(o: FitOptions, structure, added: int = 0) -> None:

@@ -70,7 +70,7 @@ from .chain_pilot import chain_pilot
 from .estimate import Estimate
 from .gmm import hansen
 from .solutions import alternatives, bounds, capped, solve_rounds, typical_scale
-from .spectral_pilot import damping_floor, spectral_pilot
+from .spectral_pilot import damping_floor, settled_shape, spectral_pilot
 
 __all__ = [
     "BLOCKS_PER_EQUATION",
@@ -212,9 +212,13 @@ def estimate_system(
     unit: str = "m",
     checks: Sequence | None = None,
     support=None,
+    floor: bool | None = None,
 ) -> Estimate:
     """The calibrated quasi-likelihood of ``record`` under ``system`` and its mode
     (module docstring); the arguments are :func:`hosid.inference.estimate.estimate`'s.
+    ``floor``: whether the spectral matrix's search keeps every damper's coefficient at
+    least 0 (:func:`~hosid.inference.spectral_pilot.damping_floor`; default: under a
+    shaped force only).
 
     Raises
     ------
@@ -236,22 +240,35 @@ def estimate_system(
         checks = [*checks, *noise_check(state, system)]
     if components is None:
         system, checks = with_sensor_noise(state, system, checks)
+
+    def bounds_of(s):
+        return bounds(s, support, lambda: s.default_priors(system_scales(state, s),
+                                                           constrained=False))  # fmt: skip
+
+    theta0, settled = None, []
+    if system.excitation is None:  # the file leaves the forces' shape to the record
+        system = dataclasses.replace(system, excitation=())
+        if components is None and system.sensor_noise and start is None:
+            try:
+                check_noise_model(system, state)
+            except HosidInputError:
+                pass
+            else:
+                system, theta0, note = settled_shape(state, system, _identities_pilot(
+                    state, system), bounds_of)  # fmt: skip
+                settled = [note]
     components = list(components or system_components(system=system))
-    lower, upper = bounds(
-        system,
-        support,
-        lambda: system.default_priors(system_scales(state, system), constrained=False),
-    )
-    if system.excitation and any(isinstance(c, ChainSpectralMatrix) for c in components):
+    lower, upper = bounds_of(system)
+    if (bool(system.excitation) if floor is None else floor) and any(
+        isinstance(c, ChainSpectralMatrix) for c in components
+    ):
         lower = damping_floor(system, lower)
     if start is not None:
         theta0 = np.array(start, dtype=float)
+    elif theta0 is not None:  # the shape's settlement searched it
+        pass
     elif system.sensor_noise or system.excitation:  # from the identities' pilot if any
-        try:
-            theta0 = chain_pilot(state, system)
-        except HosidInputError:
-            theta0 = None
-        theta0 = spectral_pilot(state, system, theta0, lower, upper)
+        theta0 = spectral_pilot(state, system, _identities_pilot(state, system), lower, upper)
     else:
         theta0 = chain_pilot(state, system)
     logs = system.log_params
@@ -261,11 +278,25 @@ def estimate_system(
     sigma_v = restoration(state, system, theta).velocity_sd
     sigma_v = float(sigma_v[0]) if system.single_names else sigma_v
     others = alternatives(ql, theta, [theta], cov, J_best)
-    notes = [
-        (f"channel {c.name}: " if state.n > 1 else "") + c.spectrum.summary()
-        for c in state.channels
-    ] + state.band_notes()
+    notes = (
+        [
+            (f"channel {c.name}: " if state.n > 1 else "") + c.spectrum.summary()
+            for c in state.channels
+        ]
+        + state.band_notes()
+        + settled
+    )
     if not np.all(np.isfinite(theta)):
         raise HosidInputError("the estimating equations have no finite solution")
     return Estimate(system, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks,
                     notes, others, None)  # fmt: skip
+
+
+def _identities_pilot(state: ChainState, system: System) -> np.ndarray | None:
+    """The identities' closed-form pilot (:func:`~hosid.inference.chain_pilot.chain_pilot`),
+    or ``None`` where they have none (a start of the spectral matrix's search).
+    """
+    try:
+        return chain_pilot(state, system)
+    except HosidInputError:
+        return None

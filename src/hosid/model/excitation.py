@@ -278,7 +278,7 @@ class Spectrum:
         names = model.param_names
         self.i_S0 = names.index("S0") if "S0" in names else None
         terms = getattr(model, "terms", None)
-        terms = model.excitation if terms is None else terms
+        terms = (model.excitation or ()) if terms is None else terms
         self.terms = [
             (t, tuple(names.index(p) for p in t.params)) for t in terms if isinstance(t, ShapeTerm)
         ]

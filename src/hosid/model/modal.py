@@ -103,22 +103,22 @@ def _linear_modes(system: System, th: np.ndarray, slopes: np.ndarray):
 def modal_draws(system: System, theta, slopes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     r"""``omega`` (rad/s) and ``zeta`` ``(D, n)`` and real shapes ``(D, n, n)`` (dof, mode)
     of the equivalent linear system of every draw of ``theta`` ``(..., p)`` (at most
-    :data:`MAX_DRAWS`), with the slopes ``slopes`` (module docstring).  A draw with fewer
-    than ``n`` underdamped modes (an overdamped one) is left out.
+    :data:`MAX_DRAWS`), with the slopes ``slopes`` (module docstring): the ``r``
+    underdamped modes of the draws that have the most common number of them (the larger
+    on a tie; an
+    overdamped mode has no frequency; on the building of ``analyses/building.py`` one of
+    five is, in every draw); the other draws are left out.
     """
     gamma = np.asarray(slopes, dtype=float)
     n = system.n
-    omegas, zetas, shapes = [], [], []
-    for th in _thin(theta):
-        m = _linear_modes(system, th, gamma)
-        if m.omega.size != n:
-            continue
-        omegas.append(m.omega)
-        zetas.append(m.zeta)
-        shapes.append(m.shapes.real)
-    if not omegas:
+    got = [_linear_modes(system, th, gamma) for th in _thin(theta)]
+    counts = np.bincount([m.omega.size for m in got], minlength=n + 1)
+    r = int(np.flatnonzero(counts[1:] == counts[1:].max())[-1]) + 1 if counts[1:].any() else 0
+    kept = [m for m in got if r and m.omega.size == r]
+    if not kept:
         return np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, n, n))
-    return np.array(omegas), np.array(zetas), np.array(shapes)
+    return (np.array([m.omega for m in kept]), np.array([m.zeta for m in kept]),
+            np.array([m.shapes.real for m in kept]))  # fmt: skip
 
 
 def _stats(v: np.ndarray) -> dict[str, float]:
@@ -131,14 +131,14 @@ def _stats(v: np.ndarray) -> dict[str, float]:
 def summarize_modes(system: System, theta, slopes) -> list[dict]:
     """The modes by increasing frequency (module docstring): ``frequency_hz`` and
     ``damping_ratio`` (each ``mean``, ``sd``, ``q05`` ... ``q95``), ``shape`` (one number
-    per dof in the system's order, largest entry 1) and ``draws`` (how many draws had
-    every mode underdamped).
+    per dof in the system's order, largest entry 1) and ``draws`` (how many draws entered:
+    :func:`modal_draws`).
     """
     omega, zeta, shapes = modal_draws(system, theta, slopes)
     if omega.shape[0] == 0:
         return []
     out = []
-    for j in range(system.n):
+    for j in range(omega.shape[1]):
         s = shapes[:, :, j].mean(axis=0)
         s = s / s[np.argmax(np.abs(s))]
         out.append({

@@ -117,8 +117,10 @@ class System(ParameterLayout):
         The dofs whose channels carry a white noise of unknown level ``N[dof]``; not given
         (``None``), a fit models it where a linear system's accelerations need it.
     excitation : str or sequence, optional
-        The forces' shared spectral shape: a term of
-        :data:`hosid.model.system_file.SHAPES` (default white).
+        The forces' shared spectral shape: ``"white"`` or a term of
+        :data:`hosid.model.system_file.SHAPES`; not given (``None``), white unless a
+        linear system's record rejects it
+        (:func:`hosid.inference.spectral_pilot.settled_shape`).
     values : mapping, optional
         Parameter values by name (a simulation's truth); stored as ``(name, value)``
         pairs in :attr:`param_names` order (``dict(system.values)``).
@@ -146,7 +148,7 @@ class System(ParameterLayout):
     driven: tuple[str, ...] = ()
     measured: str | Mapping[str, str] | tuple = ()
     sensor_noise: bool | tuple | None = None
-    excitation: str | tuple = ()
+    excitation: str | tuple | None = None
     values: Mapping[str, float] | tuple = ()
     single_names: bool = False
 
@@ -238,7 +240,7 @@ class System(ParameterLayout):
         drift = [f"{t.params[0]}[{self.elements[k].label}]" for k, t in self.columns]
         masses = [f"mass[{d}]" for d, m in zip(self.dofs, self.masses, strict=True) if m is None]
         noise = (f"N[{d}]" for d in self.sensor_noise or ())
-        shape = (p for t in self.excitation for p in t.params)
+        shape = (p for t in self.excitation or () for p in t.params)
         return (*drift, *masses, *(f"S0[{d}]" for d in self.driven), *shape, *noise)
 
     def default_priors(self, scales, *, constrained: bool = True):
@@ -259,7 +261,8 @@ class System(ParameterLayout):
                 "driven": list(self.driven), "measured": self.declared,
                 "sensor_noise": None if self.sensor_noise is None
                 else list(self.sensor_noise),
-                "excitation": [t.name for t in self.excitation] or "white"}  # fmt: skip
+                "excitation": None if self.excitation is None
+                else [t.name for t in self.excitation] or "white"}  # fmt: skip
 
     @property
     def incidence(self) -> np.ndarray:

@@ -13,7 +13,8 @@ library (:mod:`hosid.model.system` for the equations):
                                      # a parameter (or a list of dofs; default: when a
                                      # linear system's accelerations need it)
     excitation = "narrowband_excitation"  # optional: the driven forces' shared spectral
-                                     # shape (parameters wf, zf; default white)
+                                     # shape (parameters wf, zf; or "white"; default:
+                                     # white unless a linear system's record rejects it)
 
     [[element]]
     between = ["ground", "x1"]
@@ -227,11 +228,14 @@ def check_sensor_noise(noise: Any, dofs: Sequence[str]) -> tuple[str, ...] | Non
     return tuple(d for d in dofs if d in noise)
 
 
-def check_excitation(excitation: Any) -> tuple:
+def check_excitation(excitation: Any) -> tuple | None:
     """The shape term the driven dofs' forces share (one of :data:`SHAPES`, by name or as
-    a term), as a tuple: empty for ``None``, ``"white"`` or an empty list.
+    a term), as a tuple: empty for ``"white"`` or an empty list; ``None`` (not given: the
+    record chooses, :func:`hosid.inference.spectral_pilot.settled_shape`) stays ``None``.
     """
-    if excitation is None or excitation == "white":
+    if excitation is None:
+        return None
+    if excitation == "white":
         return ()
     items = [excitation] if isinstance(excitation, str) else excitation
     if not isinstance(items, Sequence):
@@ -323,7 +327,7 @@ def system_from_dict(data: Mapping[str, Any], source: str = "") -> System:
             driven=data.get("driven", ()),
             measured=data.get("measured", ()),
             sensor_noise=data.get("sensor_noise"),
-            excitation=data.get("excitation", ()),
+            excitation=data.get("excitation"),
             values=data.get("values", {}),
         )
     except HosidInputError as exc:

@@ -60,7 +60,7 @@ class ParameterLayout:
     @property
     def log_params(self) -> list[int]:
         """Parameters handled in their logarithm: unknown masses, levels, the shape's."""
-        shape = tuple(p for t in self.excitation for p in t.params)
+        shape = tuple(p for t in self.excitation or () for p in t.params)
         return [i for i, n in enumerate(self.param_names)
                 if n.startswith(("mass[", "S0", "N[")) or n in shape]  # fmt: skip
 

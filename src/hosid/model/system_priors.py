@@ -7,8 +7,12 @@ Each element's terms take the single oscillator's default priors
 on one side of it, so its coefficients (per unit mass of the first dof) exceed what its
 own relative motion shows (in a uniform five-storey shear chain the ground spring is 6.7
 times :math:`\omega_{n,e}^2 = \sigma_{\dot r_e}^2/\sigma_{r_e}^2`, above the single
-oscillator's :math:`4\omega_n^2`).  For the one-element chain they are the single
-oscillator's priors.  An unknown mass is
+oscillator's :math:`4\omega_n^2`), and :data:`MASS_WIDENING` times more when a mass is
+unknown: the coefficients are per unit mass of the first dof, and a heavy dof carries a
+stiff element (on the building of ``analyses/building.py`` the top storey's damper sat at
+the edge of the narrower range; the search starts within it,
+:func:`hosid.inference.spectral_pilot.search_box`).  For the one-element chain they are
+the single oscillator's priors.  An unknown mass is
 log-uniform on :math:`[10^{-2}, 10^2]` (the first dof's mass is 1), and a driven dof's
 level :math:`S_{0,d}` log-uniform over four decades each side of its acceleration's
 rough level times the square of its known mass (two decades, as the single oscillator's,
@@ -43,6 +47,9 @@ __all__ = ["MASS_RANGE", "NOISE_RANGE", "SystemScales", "equivalent_damping", "s
 
 #: The support of an unknown mass (the first dof's mass is 1).
 MASS_RANGE = (1e-2, 1e2)
+#: How much wider an element's coefficients range when a mass is unknown (module
+#: docstring).
+MASS_WIDENING = 10.0
 #: The support of a sensor noise level, in units of its channel's rough level.
 NOISE_RANGE = (1e-8, 1e2)
 
@@ -96,7 +103,8 @@ def system_priors(system: System, scales: SystemScales, *, constrained: bool = T
     for e, t in system.columns:
         prior = t.default_priors(scales.elements[e])[t.params[0]]
         if system.n > 1 and isinstance(prior, Uniform):
-            prior = Uniform(system.n * prior.lower, system.n * prior.upper)
+            wide = system.n * (MASS_WIDENING if None in system.masses else 1.0)
+            prior = Uniform(wide * prior.lower, wide * prior.upper)
         priors[next(names)] = prior
     masses = system.masses
     for m in masses:
