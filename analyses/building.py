@@ -270,13 +270,14 @@ def write_results(table, ref, oma, fits, control, seen, seconds, out: Path, quic
         "matrix's (Whittle's score), which weigh each frequency by its motion over its noise: "
         "the noisy twin is recovered. The shaker's force is coloured: on the twin a white "
         "force modelled puts the first two frequencies about 2 % low, the shaped force "
-        "(`narrow-band force`) recovers them. On the building the chain is still planar: "
-        "its floors also move in other directions and in torsion (peaks from 2.4 Hz up whose "
-        "shapes no planar chain has), and its top storey comes out with a damper at its "
-        "prior's edge and a spring below zero. Where no fit of a variant with "
-        "the noise modelled ran (its estimate puts a storey's damping below zero or at a "
-        "prior's edge), the table shows its estimate (`estimate only`, Laplace "
-        "intervals)."]  # fmt: skip
+        "recovers them; a file silent on the force's shape (`the force's shape left to the "
+        "record`, as the issue's check writes it) leaves the choice to the record, which "
+        "rejects the white force here. On the building the chain is still planar: its "
+        "floors also move in other directions and in torsion (peaks from 2.4 Hz up whose "
+        "shapes no planar chain has), and with unknown masses the shaped force's maximum has "
+        "a light fourth floor and a stiff, heavily damped top storey: one of its five modes "
+        "is overdamped, and the modal table lists four. Where no fit of a variant ran, the "
+        "table shows its estimate (`estimate only`, Laplace intervals)."]  # fmt: skip
     (out / "building.md").write_text("\n".join(L) + "\n")
     return out / "building.md"
 
