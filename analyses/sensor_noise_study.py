@@ -46,7 +46,7 @@ def twin() -> hosid.System:
         values |= {f"a1[{a}-{b}]": DAMPING, f"a2[{a}-{b}]": STIFFNESS}
     values |= {f"mass[{d}]": 1.0 for d in DOFS[1:]} | {"S0[x5]": LEVEL}
     return hosid.System(DOFS, elements, driven=("x5",), measured="acceleration",
-                        sensor_noise=True, values=values)  # fmt: skip
+                        sensor_noise=True, excitation="white", values=values)  # fmt: skip
 
 
 def modal(system, theta) -> np.ndarray:
