@@ -79,7 +79,7 @@ def spectral_pilot(
     :func:`shape_start` (the shape's grid holds nearly white shapes, so the result is at
     least as likely as the white force's: from the two first starts alone the building's
     record gave a worse maximum; :func:`damping_floor` for the rest).  With ``deviance``,
-    also the maximum's deviance :math:`-2\log L` (:func:`grouped_deviance`).
+    also the maximum's deviance: :math:`-2\log L` over every bin (:func:`settled_shape`).
     A record without sensor noise leaves every :math:`S(\omega)` of a force at fewer dofs
     than channels nearly singular: the search is then ill-conditioned (a simulated
     two-dof chain under a narrow-band force: the shape's parameters far off, Hansen's J
