@@ -104,10 +104,9 @@ def modal_draws(system: System, theta, slopes) -> tuple[np.ndarray, np.ndarray, 
     r"""``omega`` (rad/s) and ``zeta`` ``(D, n)`` and real shapes ``(D, n, n)`` (dof, mode)
     of the equivalent linear system of every draw of ``theta`` ``(..., p)`` (at most
     :data:`MAX_DRAWS`), with the slopes ``slopes`` (module docstring): the ``r``
-    underdamped modes of the draws that have the most common number of them (the larger
-    on a tie; an
-    overdamped mode has no frequency; on the building of ``analyses/building.py`` one of
-    five is, in every draw); the other draws are left out.
+    underdamped modes of the draws that have the most common number of them, the larger
+    on a tie (an overdamped mode has no frequency; on the building of
+    ``analyses/building.py`` one of five is, in every draw); the other draws are left out.
     """
     gamma = np.asarray(slopes, dtype=float)
     n = system.n
