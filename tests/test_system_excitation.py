@@ -10,7 +10,12 @@ import numpy as np
 import pytest
 
 import hosid
-from hosid.components.chain_spectral_matrix import band_periodogram, spectral_matrix
+from hosid.components.chain_spectral_matrix import (
+    _hermitian_parts,
+    band_periodogram,
+    spectral_matrix,
+    spectral_parts,
+)
 from hosid.errors import HosidInputError
 from hosid.inference.system_estimate import estimate_system, system_components
 from hosid.model.chain import simulate_chain
@@ -68,6 +73,24 @@ def test_spectral_matrix_is_the_oscillators_closed_form():
     np.testing.assert_allclose(S.real, s2 * motion + alias + 0.01, rtol=1e-10)
     batch = spectral_matrix(one, np.stack([th, th]), w, DT)  # walkers broadcast
     np.testing.assert_allclose(batch[1], spectral_matrix(one, th, w, DT), rtol=1e-14)
+
+
+@pytest.mark.parametrize("dt", [DT, None])
+def test_spectral_parts_are_the_matrixs_hermitian_parts(dt):
+    """The sampler's parts, built from the transfer's columns, are the whole matrix's
+    (diagonal, sqrt 2 times the real and imaginary parts above it), for a batch of
+    walkers of a shaped two-dof chain driven at both dofs with sensor noise: to rounding."""
+    both = System(("x1", "x2"), ELEMENTS, driven=("x1", "x2"), measured="acceleration",
+                  masses={"x1": 1.0}, sensor_noise=True,
+                  excitation="narrowband_excitation")  # fmt: skip
+    th = np.array([0.4, 30.0, 0.2, 18.0, 0.8, 1.5, 0.7, 6.0, 0.3, 0.02, 0.05])
+    assert th.size == len(both.param_names)
+    walkers = th * (1 + 0.05 * np.random.default_rng(3).standard_normal((4, th.size)))
+    w = np.linspace(0.5, 30.0, 200)
+    S = spectral_matrix(both, walkers, w, dt)
+    assert S.shape == (4, 200, 2, 2)
+    np.testing.assert_allclose(spectral_parts(both, walkers, w, dt), _hermitian_parts(S),
+                               rtol=1e-12, atol=1e-14 * np.abs(S).max())  # fmt: skip
 
 
 def test_simulated_shaped_force_has_the_model_spectrum():

@@ -68,6 +68,7 @@ __all__ = [
     "check_noise_model",
     "periodogram",
     "spectral_matrix",
+    "spectral_parts",
 ]
 
 #: Neighbouring bins in one row of the influence.
@@ -173,6 +174,34 @@ def spectral_matrix(
     by :math:`L(\omega)`, and the aliases by :math:`L(2\pi/\Delta t - \omega)`, that of
     the nearest alias (a shape that falls off above the modes leaves them negligible).
     """
+    g, diag = _columns(system, theta, omega, dt)
+    S = np.einsum("...akn,...akm->...knm", g, g.conj())
+    idx = np.arange(g.shape[-1])
+    S[..., idx, idx] += diag
+    return S
+
+
+def spectral_parts(
+    system: System, theta: np.ndarray, omega: np.ndarray, dt: float | None = None
+) -> np.ndarray:
+    """:func:`spectral_matrix`'s Hermitian parts (:func:`_hermitian_parts`), ``(..., K,
+    n^2)``, from the transfer's columns without the whole matrix (the sampler's
+    likelihood: half the time of the matrix and its parts on the building's chain).
+    """
+    g, diag = _columns(system, theta, omega, dt)
+    n = g.shape[-1]
+    i, j = np.triu_indices(n, 1)
+    d = np.sum(g.real**2 + g.imag**2, axis=-3) + diag
+    up = math.sqrt(2.0) * np.sum(g[..., i] * g[..., j].conj(), axis=-3)
+    return np.concatenate([d, up.real, up.imag], axis=-1)
+
+
+def _columns(system: System, theta, omega: np.ndarray, dt: float | None):
+    r"""The columns :math:`g_a(\omega)`, ``(..., a, K, n)``, with :math:`S = \sum_a g_a
+    g_a^{\mathsf H} + \mathrm{diag}(\cdot)`, and that diagonal, ``(..., K, n)``
+    (:func:`spectral_matrix`): each driven dof's acceleration per unit force times the
+    square root of its level, the force's shape and the interval average's gain.
+    """
     th = np.asarray(theta, dtype=float)
     B, n = system.incidence, system.n
     k = np.zeros((*th.shape[:-1], len(system.elements)))
@@ -192,22 +221,21 @@ def spectral_matrix(
     poles = 1.0 / (1j * omega[:, None] - lam[..., None, :])  # (..., K, 2n)
     g = (poles[..., None, :, :] @ (V[..., None, :n, :] * np.swapaxes(R, -1, -2)[..., :, None, :]
                                    ).swapaxes(-1, -2))  # (..., a, K, n)  # fmt: skip
-    g = g * (omega**2)[:, None]  # acceleration per unit force
-    g = g * np.sqrt(system.levels(th)[..., driven])[..., :, None, None]
-    S = np.einsum("...akn,...akm->...knm", g, g.conj())
+    gain = omega**4 * np.ones((*th.shape[:-1], 1))  # acceleration per unit force, squared
     white = system.spectrum.white
     if not white:
-        S = S * system.spectrum.shape(omega, th)[..., :, None, None]
-    idx = np.arange(n)
+        gain = gain * system.spectrum.shape(omega, th)
     if dt is not None:
         s2 = np.sinc(omega * dt / (2.0 * math.pi)) ** 2
-        S = S * s2[:, None, None]
+        gain = gain * s2
+    g = g * np.sqrt(system.levels(th)[..., driven, None, None] * gain[..., None, :, None])
+    diag = np.broadcast_to(system.noise_levels(th)[..., None, :], (*g.shape[:-3], *g.shape[-2:]))
+    if dt is not None:
         flat = system.levels(th) * minv**2  # (..., n), 0 off the driven dofs
         alias = 1.0 - s2 if white else (1.0 - s2) * system.spectrum.shape(
             2.0 * math.pi / dt - omega, th)  # the nearest alias's shape  # fmt: skip
-        S[..., idx, idx] += alias[..., :, None] * flat[..., None, :]
-    S[..., idx, idx] += system.noise_levels(th)[..., None, :]
-    return S
+        diag = diag + alias[..., :, None] * flat[..., None, :]
+    return g, diag
 
 
 def _hermitian_parts(S: np.ndarray) -> np.ndarray:
@@ -254,7 +282,7 @@ class ChainSpectralMatrix:
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
-            S = _hermitian_parts(spectral_matrix(system, th, omega, state.dt))
+            S = spectral_parts(system, th, omega, state.dt)
             return base.sum(axis=1) - S.reshape(*th.shape[:-1], -1) @ Wt / G
 
         per = base - np.einsum("jkab,kba->jk", W, S0).real @ onehot.T / G  # (p, G)
