@@ -15,6 +15,7 @@ from hosid.model import (
     PAPER_PARAMS,
     TERMS,
     DriftTerm,
+    LogNormal,
     LogUniform,
     Model,
     Normal,
@@ -327,10 +328,21 @@ def test_docstring_examples_run():
 
 
 # ------------------------------------------------------------------ priors
-@pytest.mark.parametrize("prior", [Uniform(-2.0, 3.0), LogUniform(0.1, 50.0), Normal(1.0, 2.0)])
+@pytest.mark.parametrize(
+    "prior",
+    [
+        Uniform(-2.0, 3.0),
+        LogUniform(0.1, 50.0),
+        Normal(1.0, 2.0),
+        LogNormal(1.0, 1.2, 0.01, 50.0),
+        LogNormal(2.0, 0.5, 1.5, 3.0),
+    ],
+)
 def test_prior_normalized_and_sampled_by_its_inverse_cdf(prior):
     lo, hi = max(prior.lower, -30.0), min(prior.upper, 60.0)
-    pts = [1.0] if isinstance(prior, LogUniform) else None
+    pts = (
+        [0.1, 1.0, 10.0] if prior.log_scaled and lo < 0.1 else [1.0] if prior.log_scaled else None
+    )
     area = integrate.quad(lambda x: math.exp(prior.ln_prob(x)), lo, hi, points=pts, limit=200)
     assert area[0] == pytest.approx(1.0, abs=1e-6)
     x = prior.sample(np.random.default_rng(1), 4000)
@@ -351,6 +363,10 @@ def test_prior_support_and_bad_arguments():
         LogUniform(0.0, 1.0)
     with pytest.raises(ValueError, match="sigma > 0"):
         Normal(0.0, -1.0)
+    with pytest.raises(ValueError, match="lower < median < upper"):
+        LogNormal(5.0, 1.0, 0.1, 2.0)
+    assert LogNormal(1.0, 1.0, 0.1, 10.0).ln_prob(20.0) == -np.inf
+    assert LogNormal(1.0, 1.0, 0.1, 10.0).log_scaled and not Uniform(0, 1).log_scaled
     assert str(Uniform(0, 1)) == "U(0, 1)"
 
 

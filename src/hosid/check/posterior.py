@@ -38,7 +38,6 @@ from ..errors import HosidInputError
 from ..inference.calibrate import calibrate
 from ..inference.estimate import Estimate
 from ..model.model import Model
-from ..model.priors import LogUniform
 
 __all__ = ["screen_sample", "tree_sample"]
 
@@ -120,7 +119,7 @@ def screen_sample(
     names = model.param_names
     cal = calibrate(est)
     priors = model.default_priors(est.scales(), constrained=True)
-    logs = np.array([isinstance(priors[n], LogUniform) for n in names])
+    logs = np.array([priors[n].log_scaled for n in names])
     lo = np.array([priors[n].lower for n in names], dtype=float)
     hi = np.array([priors[n].upper for n in names], dtype=float)
     lo[logs], hi[logs] = np.log(lo[logs]), np.log(hi[logs])

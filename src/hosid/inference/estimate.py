@@ -59,7 +59,7 @@ from ..errors import HosidInputError
 from ..model.excitation import Spectrum
 from ..model.measured import MeasuredExcitation
 from ..model.model import Model
-from ..model.priors import LogUniform, PriorSet
+from ..model.priors import PriorSet
 from ..model.system import System
 from ..progress import Stages
 from ..record import Record
@@ -230,10 +230,12 @@ class Estimate:
 
 
 def log_params(model: Model, priors: PriorSet | None = None) -> list[int]:
-    """Parameters handled in their logarithm (log-uniform priors; ``S0`` and ``wc``)."""
+    """Parameters handled in their logarithm (log-uniform and log-normal priors; ``S0`` and
+    ``wc``).
+    """
     names = model.param_names
     if priors is not None:
-        return [i for i, n in enumerate(names) if isinstance(priors[n], LogUniform)]
+        return [i for i, n in enumerate(names) if priors[n].log_scaled]
     return [i for i, n in enumerate(names) if n in ("S0", "wc", "wf", "zf")]
 
 

@@ -4,7 +4,7 @@ of several degrees of freedom (:mod:`.system`) and their simulator (:mod:`.chain
 
 from .chain import simulate_chain
 from .model import ALIASES, Model, get_term
-from .priors import LogUniform, Normal, Prior, PriorSet, Uniform
+from .priors import LogNormal, LogUniform, Normal, Prior, PriorSet, Uniform
 from .simulate import PAPER_PARAMS, simulate, simulate_ensemble
 from .system import System
 from .system_file import read_system
@@ -16,6 +16,7 @@ __all__ = [
     "PAPER_PARAMS",
     "TERMS",
     "DriftTerm",
+    "LogNormal",
     "LogUniform",
     "Model",
     "Normal",

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-__all__ = ["LogUniform", "Normal", "Prior", "PriorSet", "Uniform"]
+__all__ = ["LogNormal", "LogUniform", "Normal", "Prior", "PriorSet", "Uniform"]
 
 
 class Prior:
@@ -34,6 +34,9 @@ class Prior:
 
     lower: float = -math.inf
     upper: float = math.inf
+    #: Whether the parameter is handled in its logarithm (a log-uniform or log-normal
+    #: prior): the solvers' and the sampler's coordinates.
+    log_scaled = False
 
     def ln_prob(self, x) -> np.ndarray:  # pragma: no cover - abstract
         """Log density (``-inf`` outside the support)."""
@@ -79,6 +82,7 @@ class LogUniform(Prior):
 
     lower: float
     upper: float
+    log_scaled = True
 
     def __post_init__(self):
         if not (self.lower > 0 and self.upper > self.lower):
@@ -125,6 +129,52 @@ class Normal(Prior):
 
     def __str__(self) -> str:
         return f"N({self.mu:.4g}, {self.sigma:.4g}^2)"
+
+
+@dataclass(frozen=True)
+class LogNormal(Prior):
+    r""":math:`\ln x \sim N(\ln m, s^2)` truncated to ``[lower, upper]`` (``0 < lower``):
+    median ``m`` (untruncated), log-sd ``s``.
+    """
+
+    median: float
+    sigma: float
+    lower: float
+    upper: float
+    log_scaled = True
+
+    def __post_init__(self):
+        if not (self.sigma > 0 and 0 < self.lower < self.median < self.upper):
+            raise ValueError(
+                "LogNormal prior needs sigma > 0 and 0 < lower < median < upper, got "
+                f"{self.median}, {self.sigma}, {self.lower}, {self.upper}"
+            )
+
+    def _z(self, x):
+        return (np.log(x) - math.log(self.median)) / self.sigma
+
+    @property
+    def _mass(self) -> float:  # the normal's probability within the truncation
+        lo, hi = self._z(self.lower), self._z(self.upper)
+        return float(special.ndtr(hi) - special.ndtr(lo))
+
+    def ln_prob(self, x) -> np.ndarray:
+        """Log density."""
+        x = np.asarray(x, dtype=float)
+        inside = (x >= self.lower) & (x <= self.upper)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = self._z(x)
+            lp = -np.log(x * self.sigma * math.sqrt(2 * math.pi) * self._mass) - 0.5 * z**2
+        return np.where(inside, lp, -np.inf)
+
+    def rescale(self, u) -> np.ndarray:
+        """Inverse CDF."""
+        lo = special.ndtr(self._z(self.lower))
+        z = special.ndtri(lo + np.asarray(u, dtype=float) * self._mass)
+        return np.clip(self.median * np.exp(self.sigma * z), self.lower, self.upper)
+
+    def __str__(self) -> str:
+        return f"logN({self.median:.4g}, {self.sigma:.3g}; {self.lower:.4g}-{self.upper:.4g})"
 
 
 #: A constraint: ``theta (..., p) -> (...)``, admissible where positive.

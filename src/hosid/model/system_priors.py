@@ -13,7 +13,12 @@ stiff element (on the building of ``analyses/building.py`` the top storey's damp
 the edge of the narrower range; the search starts within it,
 :func:`hosid.inference.spectral_pilot.search_box`).  For the one-element chain they are
 the single oscillator's priors.  An unknown mass is
-log-uniform on :math:`[10^{-2}, 10^2]` (the first dof's mass is 1), and a driven dof's
+log-normal about the first dof's (which is 1), with 95 % of it within a decade either side
+(:data:`MASS_SPREAD`), truncated to :math:`[10^{-2}, 10^2]`: a structure's storeys or
+bays weigh alike within a decade.  With a flat prior over the four decades the building of
+``analyses/building.py`` put a near-massless fourth floor between two stiff storeys (its
+maximum at :math:`10^{-2}`, the posterior's 5-95 % 0.012-0.32); with this one 0.06-0.5,
+its natural frequencies within 0.5 % of the flat prior's.  A driven dof's
 level :math:`S_{0,d}` log-uniform over four decades each side of its acceleration's
 rough level times the square of its known mass (two decades, as the single oscillator's,
 when the mass is known; a factor :math:`10^2` more each side when it is not, which the
@@ -31,13 +36,14 @@ constraint each, ``a1eq[ground-x1]``; ``a1eq`` for the one-element chain).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .priors import LogUniform, PriorSet, Uniform
+from .priors import LogNormal, LogUniform, PriorSet, Uniform
 from .terms import Scales
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -47,6 +53,9 @@ __all__ = ["MASS_RANGE", "NOISE_RANGE", "SystemScales", "equivalent_damping", "s
 
 #: The support of an unknown mass (the first dof's mass is 1).
 MASS_RANGE = (1e-2, 1e2)
+#: The log-sd of an unknown mass's prior about the first dof's mass (module docstring):
+#: a decade either side holds 95 % of it.
+MASS_SPREAD = math.log(10.0) / 1.96
 #: How much wider an element's coefficients range when a mass is unknown (module
 #: docstring).
 MASS_WIDENING = 10.0
@@ -109,7 +118,7 @@ def system_priors(system: System, scales: SystemScales, *, constrained: bool = T
     masses = system.masses
     for m in masses:
         if m is None:
-            priors[next(names)] = LogUniform(*MASS_RANGE)
+            priors[next(names)] = LogNormal(1.0, MASS_SPREAD, *MASS_RANGE)
     for d in system.driven:
         k = system.dofs.index(d)
         known = masses[k] is not None
