@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from .sampler import MAX_STEPS
+
 __all__ = ["FitOptions"]
 
 
@@ -43,7 +45,8 @@ class FitOptions:
         Trispectral domain of J4.
     n_walkers, n_steps, max_steps : int
         Ensemble size (default ``None``: 32, or 2 p + 2 for p > 15 parameters); a fixed
-        number of steps, or the stop rule's limit.
+        number of steps, or the stop rule's limit
+        (:data:`~hosid.inference.sampler.MAX_STEPS`).
     seed : int or Generator, optional
         The only source of randomness (walkers, moves, prior draws).
     progress : bool or Stages
@@ -78,7 +81,7 @@ class FitOptions:
     domain: str = "principal"
     n_walkers: int | None = None
     n_steps: int | None = None
-    max_steps: int = 20000
+    max_steps: int = MAX_STEPS
     seed: int | np.random.Generator | None = None
     progress: Any = True
     backend: str | Path | None = None
