@@ -186,7 +186,8 @@ def spectral_parts(
 ) -> np.ndarray:
     """:func:`spectral_matrix`'s Hermitian parts (:func:`_hermitian_parts`), ``(..., K,
     n^2)``, from the transfer's columns without the whole matrix (the sampler's
-    likelihood: half the time of the matrix and its parts on the building's chain).
+    likelihood; for 46 walkers of the building's chain on 1492 bins, 17 ms against 44 ms
+    for the matrix and then its parts: ``benchmarks/test_bench.py``).
     """
     g, diag = _columns(system, theta, omega, dt)
     n = g.shape[-1]
