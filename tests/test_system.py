@@ -274,3 +274,26 @@ def test_docstring_examples():
 
     result = doctest.testmod(hosid.model.system, raise_on_error=True)
     assert result.attempted >= 2
+
+
+def test_a_linear_spring_alone_is_constrained_positive_and_a_cubic_ones_is_not():
+    """A stationary chain has every element's potential bounded below: an element whose
+    only restoring term is a linear spring gets ``stiffness[<element>] > 0`` with the
+    constraints, one with a cubic spring beside it none."""
+    from hosid.model.system_priors import SystemScales, linear_springs, system_priors
+    from hosid.model.terms import Scales
+
+    s = System(("x1", "x2"), [(("ground", "x1"), ("linear_damping", "linear_stiffness",
+                                                  "cubic_stiffness")),
+                              (("x1", "x2"), ("linear",))])  # fmt: skip
+    assert linear_springs(s) == {1: s.index("a2[x1-x2]")}
+    sc = Scales(sigma_x=1.0, sigma_v=5.0, S0=10.0, dt=0.02)
+    priors = system_priors(s, SystemScales((sc, sc), (10.0, 10.0)))
+    assert "constraint stiffness[x1-x2]" in priors.describe()
+    assert not any("stiffness[ground-x1]" in k for k in priors.describe())
+    th = np.array([0.5, 20.0, 5.0, 0.3, 10.0, 1.0, 10.0, 10.0])
+    assert priors.admissible(th)
+    th[s.index("a2[x1-x2]")] = -10.0
+    assert not priors.admissible(th) and priors.ln_prob(th) == -np.inf
+    loose = system_priors(s, SystemScales((sc, sc), (10.0, 10.0)), constrained=False)
+    assert not loose.constraints
