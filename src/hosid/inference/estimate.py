@@ -230,9 +230,7 @@ class Estimate:
 
 
 def log_params(model: Model, priors: PriorSet | None = None) -> list[int]:
-    """Parameters handled in their logarithm (log-uniform and log-normal priors; ``S0`` and
-    ``wc``).
-    """
+    """Parameters handled in their logarithm (``Prior.log_scaled``; ``S0`` and ``wc``)."""
     names = model.param_names
     if priors is not None:
         return [i for i, n in enumerate(names) if priors[n].log_scaled]

@@ -114,7 +114,7 @@ def constraint_name(system: System, e: int) -> str:
 
 def system_priors(system: System, scales: SystemScales, *, constrained: bool = True) -> PriorSet:
     """Every parameter's default prior (module docstring); with ``constrained`` eq (65)
-    per damped element.
+    per damped element and a positive stiffness per lone linear spring.
     """
     names = iter(system.param_names)
     priors = {}
