@@ -29,8 +29,8 @@ from hosid.model import (
 
 #: NOTES.md, "Candidate effects (shared vocabulary)", spelled exactly so; issue 29
 #: adds the narrow-band and the impulsive excitation (its interface names them so).
-#: terms that combine with no other excitation shape
-WHITENING_OR_IMPULSES = ("narrowband_excitation", "impulsive_excitation")
+#: terms that combine with no other excitation shape (the band-pass: a system's only)
+WHITENING_OR_IMPULSES = ("narrowband_excitation", "impulsive_excitation", "bandpass_excitation")
 
 NOTES_CANDIDATES = (
     "quadratic_damping",
@@ -72,9 +72,10 @@ def test_term_kinds_and_parameters():
         "excitation_mean",
     }
     params = [p for t in TERMS.values() for p in t.params]
+    # the low-pass and the band-pass filter share wf and zf
     assert params == [
-        "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "wf", "zf", "rate",
-        "noise_sd",
+        "a1", "n1", "a2", "n2", "b2", "mu", "m", "S0", "wc", "wb", "rolloff", "wf", "zf", "wf",
+        "zf", "rate", "noise_sd",
     ]  # fmt: skip
     for t in TERMS.values():
         assert t.latex and type(t).__doc__

@@ -126,6 +126,12 @@ class ShapeTerm(Term):
         """A tabulated factor of :math:`L` (``None``: the shape is :meth:`inverse_poly`'s)."""
         return None
 
+    def factor(self, omega, *values):
+        """A factor of :math:`L` beside :math:`1/`:meth:`inverse_poly` (``values`` the
+        term's parameters, broadcasting against ``omega``; ``None``: none): the table.
+        """
+        return self.table(omega)
+
 
 @dataclass(frozen=True, repr=False)
 class ColouredExcitation(ShapeTerm):
@@ -345,8 +351,8 @@ class Spectrum:
         c = self.inverse_poly(theta)
         den = sum(ck[new] * w2**k for k, ck in enumerate(c))
         out = 1.0 / den
-        for t, _ in self.terms:  # a measured shape's table
-            tab = t.table(omega)
+        for t, idx in self.terms:  # a measured shape's table, a band-pass's numerator
+            tab = t.factor(omega, *(v[new] for v in self._values(theta, idx)))
             if tab is not None:
                 out = out * tab
         return out

@@ -69,6 +69,12 @@ class Model:
             term = get_term(t) if isinstance(t, str) else t
             if not isinstance(term, Term):
                 raise HosidInputError(f"not a model term: {t!r}")
+            if getattr(term, "system_only", False):
+                raise HosidInputError(
+                    f"{term.name} is a system's force shape (a system file's excitation, "
+                    "accelerations with sensor noise): a single oscillator's identities need "
+                    "an all-pole shape such as narrowband_excitation"
+                )
             found.setdefault(term.name, term)
         ordered = tuple(sorted(found.values(), key=lambda t: _ORDER.get(t.name, len(_ORDER))))
         object.__setattr__(self, "terms", ordered)

@@ -65,7 +65,7 @@ RESERVED = (GROUND, "t", "dt", "segment", "dofs", "measured")
 #: The keys of a system file and of one of its elements.
 KEYS = ("dofs", "element", "masses", "driven", "measured", "sensor_noise", "excitation", "values")
 #: The spectral shapes a system's forces may share (:mod:`hosid.model.excitation`).
-SHAPES = ("coloured_excitation", "narrowband_excitation")
+SHAPES = ("coloured_excitation", "narrowband_excitation", "bandpass_excitation")
 ELEMENT_KEYS = ("between", "terms")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 

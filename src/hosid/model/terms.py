@@ -37,6 +37,7 @@ from typing import ClassVar
 import numpy as np
 from scipy import special
 
+from .bandpass import BandpassExcitation
 from .base import DriftTerm, Scales, Term, gauss
 from .excitation import (
     BandLimitedExcitation,
@@ -336,6 +337,7 @@ TERMS: dict[str, Term] = {
         ColouredExcitation(),
         BandLimitedExcitation(),
         NarrowbandExcitation(),
+        BandpassExcitation(),
         ImpulsiveExcitation(),
         MeasurementNoise(),
     )
