@@ -37,7 +37,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .excitation import ShapeTerm, squared_modulus
+from .excitation import NarrowbandExcitation, ShapeTerm
 from .priors import LogUniform
 
 __all__ = ["BandpassExcitation"]
@@ -65,11 +65,11 @@ class BandpassExcitation(ShapeTerm):
     )
 
     def inverse_poly(self, wf, zf):
-        r"""The denominator :math:`1 + (4\zeta_f^2 - 2)\omega^2/\omega_f^2 +
-        \omega^4/\omega_f^4` (the numerator is :meth:`factor`).
+        r"""The denominator: the low-pass filter's
+        (:meth:`hosid.model.excitation.NarrowbandExcitation.inverse_poly`); the numerator is
+        :meth:`factor`.
         """
-        wf = np.asarray(wf, dtype=float)
-        return squared_modulus([np.ones_like(wf), 2.0 * np.asarray(zf) / wf, wf**-2.0])
+        return NarrowbandExcitation().inverse_poly(wf, zf)
 
     def factor(self, omega, wf, zf):
         r"""The numerator :math:`(2\zeta_f\omega/\omega_f)^2`."""
