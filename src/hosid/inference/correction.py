@@ -131,10 +131,12 @@ def shifted(
     n: int,
     centre: np.ndarray | None = None,
     widen: np.ndarray | None = None,
+    shift: bool = True,
 ):
-    r""":math:`\ell(\theta + b)` (module docstring), widened by :math:`1 + 1/n`, and each
-    parameter :math:`i` by ``widen[i]`` about ``centre`` (:math:`\theta \to c +
-    (\theta - c)/w`, relative where ``positive``).
+    r""":math:`\ell(\theta + b)` (module docstring), widened by :math:`1 + 1/n` for the
+    noise of :math:`b` estimated on ``n`` records (not where ``shift`` is false: ``beta``
+    zero, only widened), and each parameter :math:`i` by ``widen[i]`` about ``centre``
+    (:math:`\theta \to c + (\theta - c)/w`, relative where ``positive``).
     """
     beta = np.asarray(beta, dtype=float)
     w = np.ones_like(beta) if widen is None else np.asarray(widen, dtype=float)
@@ -153,16 +155,15 @@ def shifted(
         )
         for m in ql.moments
     ]
+    key, noise = ("sampling_bias", 1.0 + 1.0 / n) if shift else ("simulated_spread", 1.0)
     info = {
         **ql.info,
-        "sampling_bias": {
+        key: {
             "shift": beta.tolist(), "simulations": n, "positive": positive.tolist(),
             "widened": w.tolist(),
         },
     }  # fmt: skip
-    return dataclasses.replace(
-        ql, moments=moments, L_inv=ql.L_inv / math.sqrt(1.0 + 1.0 / n), info=info
-    )
+    return dataclasses.replace(ql, moments=moments, L_inv=ql.L_inv / math.sqrt(noise), info=info)
 
 
 def simulated_like(state, model, theta, rng):
