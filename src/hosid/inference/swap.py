@@ -40,6 +40,25 @@ bias from +4.32 to +3.32 bound-sd (tolerance 3.63); record 2, whose estimate is 
 swapped one, keeps both modes (its point 0.25).  Every other case changed by the
 sampler's noise only (the drift's 90 % intervals pooled over the 80 filtered records
 0.897, was 0.900).
+
+Why the trispectrum stays out of the equations, measured again with the current
+components (Laplace estimates of ``hosid.estimate`` with J4B, or J4A, added to the
+default equations; independent simulator, 4000 s, seeds of our own).  Under the broad
+filter at the ship's resonance the raw estimator lands on the swapped side in 3 of 16
+records (hosid's simulator: 1 of 16), the filter's damping ratio 0.09-0.11 against 0.25,
+and there the default equations prefer the swap (their J 7.7 at the swapped estimate,
+28.5 at the truth, on one record).  With J4B among the equations two of three swapped
+records came back (``zf`` 0.072 to 0.185, 0.12 to 0.28; J4A: 0.16, 0.27), the third
+partly (0.127 to 0.141), and two right ones stayed (within 0.04).  Under the narrow filter
+there (``zf`` 0.1, a half-power half-width of one frequency bin of the record's 102 s
+blocks) the same addition moved ``zf`` up by 0.03-0.05 and ``a2`` down by 0.016-0.053,
+up to 3 sd (J4A alike), on three records of three: the trispectral costs' Gaussian
+reference is built from bin values, and a peak one bin wide is where that is suspected
+to fail.  J4B's equations corrected by their mean on 8 records simulated at the current
+point do neither: one swapped record of three came part of the way (0.12 to 0.15), and a
+narrow filter's record still moved (``a2`` by -0.054).  A Gaussian reference exact for
+the window's leakage would let the trispectrum join the equations; until then it bounds
+them.
 """
 
 from __future__ import annotations
