@@ -140,9 +140,9 @@ def spread_widening(ql, new, sets, theta, cov, logs, lower, upper, scale):
     at the resonance: the roots of the oscillator and of the filter repel, and the
     estimate moves along their exchange.  Measured on 10 records of the ship-roll-like
     oscillator under the narrow filter at its resonance (independent simulator, 4000 s,
-    seeds of our own): the simulated records' estimates scattered 1.67, 1.56 and 1.44
-    times the Laplace sd of ``a2``, ``wf`` and ``S0`` on average (0.91-1.32 for the
-    other parameters and under the broad filter).
+    seeds of our own): the simulated records' estimates scattered 1.67, 1.56, 1.51 and
+    1.44 times the Laplace sd of ``a2``, ``wf``, ``n2`` and ``S0`` on average (0.91-1.05
+    for ``a1``, ``n1`` and ``zf``; 1.09-1.32 under the broad filter there).
     """
     draws = []
     for sets_r in sets:
