@@ -56,7 +56,9 @@ __all__ = [
     "DEFAULT_ITERATIONS",
     "DEFAULT_SIMULATIONS",
     "bias",
+    "laplace_sd",
     "moved",
+    "relative",
     "shifted",
     "simulated_like",
     "unbiased",
@@ -110,7 +112,7 @@ def bias(
             if progress is not None:
                 progress()
         mean = np.mean(draws, axis=0)
-        logs = np.where(positive, np.log(np.abs(draws)), draws)  # positive: relative
+        logs = relative(draws, positive)
         spread.append(logs - logs.mean(axis=0))
         beta = np.where(positive, np.log(np.where(positive, mean / theta, 1.0)), mean - theta)
         theta = moved(theta_hat, -beta, positive)
@@ -122,6 +124,18 @@ def moved(theta, beta, positive) -> np.ndarray:
     r""":math:`\theta + \beta`, or :math:`\theta e^{\beta}` where ``positive``."""
     th = np.asarray(theta, dtype=float)
     return np.where(positive, th * np.exp(beta), th + beta)
+
+
+def relative(values, positive) -> np.ndarray:
+    """``values`` as the spreads compare them: their logarithm where ``positive``."""
+    v = np.asarray(values, dtype=float)
+    return np.where(positive, np.log(np.abs(v)), v)
+
+
+def laplace_sd(ql: QuasiLikelihood, theta, scale, positive) -> np.ndarray:
+    """The Laplace sd of ``ql`` at ``theta``, relative where ``positive``."""
+    sd = np.sqrt(np.maximum(np.diag(ql.laplace(theta, scale)), 0.0))
+    return sd / np.where(positive, np.abs(theta), 1.0)
 
 
 def shifted(
@@ -206,8 +220,7 @@ def unbiased(state, model, components, theta, ql, n, progress):
     first = shifted(ql, beta, positive, n)
     from .solutions import typical_scale
 
-    cov = first.laplace(corrected, typical_scale(model, state, corrected))
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0)) / np.where(positive, np.abs(corrected), 1.0)
+    sd = laplace_sd(first, corrected, typical_scale(model, state, corrected), positive)
     always = np.array([name in BOOTSTRAPPED for name in model.param_names])
     widen = widening(spread, sd, DEFAULT_ITERATIONS * (n - 1), always=always)
     return corrected, shifted(ql, beta, positive, n, centre=corrected, widen=widen)

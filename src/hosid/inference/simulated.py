@@ -60,7 +60,15 @@ import numpy as np
 
 from ..errors import HosidInputError
 from ..progress import staged
-from .correction import DEFAULT_ITERATIONS, shifted, simulated_like, unbiased, widening
+from .correction import (
+    DEFAULT_ITERATIONS,
+    laplace_sd,
+    relative,
+    shifted,
+    simulated_like,
+    unbiased,
+    widening,
+)
 from .gmm import pooled_covariance, quasi_likelihood, solve
 from .solutions import typical_scale
 
@@ -157,12 +165,8 @@ def spread_widening(ql, new, sets, theta, cov, logs, lower, upper, scale):
         return ql
     positive = np.zeros(len(theta), dtype=bool)
     positive[list(logs)] = True
-    draws = np.array(draws)
-    values = np.where(positive, np.log(np.abs(draws)), draws)
-    spread = values.std(axis=0, ddof=1)
-    sd = np.sqrt(np.maximum(np.diag(ql.laplace(new, scale)), 0.0))
-    sd = sd / np.where(positive, np.abs(new), 1.0)
-    widen = widening(spread, sd, len(draws) - 1)
+    spread = relative(np.array(draws), positive).std(axis=0, ddof=1)
+    widen = widening(spread, laplace_sd(ql, new, scale, positive), len(draws) - 1)
     if np.all(widen == 1.0):
         return ql
     return shifted(ql, np.zeros(len(theta)), positive, len(draws), centre=new, widen=widen,
