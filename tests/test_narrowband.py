@@ -381,16 +381,17 @@ def test_refined_pilots_only_where_no_coarse_solution_passes(passes, monkeypatch
     solutions the data do not reject).
     """
     est_mod = importlib.import_module("hosid.inference.estimate")
+    search_mod = importlib.import_module("hosid.inference.search")
 
     calls = []
-    real = est_mod.whitened_pilots
+    real = search_mod.whitened_pilots
 
     def spy(*args, refine=False, **kwargs):
         calls.append(refine)
         return real(*args, refine=refine, **kwargs)
 
-    monkeypatch.setattr(est_mod, "whitened_pilots", spy)
-    monkeypatch.setattr(est_mod, "acceptable", lambda found, df: passes)
+    monkeypatch.setattr(search_mod, "whitened_pilots", spy)
+    monkeypatch.setattr(search_mod, "acceptable", lambda found, df: passes)
     truth = {"a1": 0.5, "n1": 0.5, "a2": 25.0, "n2": 5.0, "S0": 100.0, "wf": 7.0, "zf": 0.2}
     rec = simulate(truth, duration=600.0, dt=0.02, rng=np.random.default_rng(2))
     est_mod.estimate(rec, NB, settle=False)

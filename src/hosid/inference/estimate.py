@@ -47,7 +47,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..chain_state import ChainState
 from ..components.base import Component, restoration
 from ..components.cumulant import ForceKurtosis
 from ..components.identities import Identities
@@ -66,24 +65,13 @@ from ..record import Record
 from ..screen import check_record, reject_failures
 from ..state import RecordState
 from ..verdicts import Check
-from .chain_pilot import chain_pilot
 from .correction import DEFAULT_SIMULATIONS
 from .gmm import QuasiLikelihood, hansen
 from .maps import likelihood_map
-from .pilot import initial_theta, whitened_pilots
-from .pilot import pilot as pilot_estimate
+from .search import kept, search
 from .settle import settled_note, settled_term, white_limit
 from .simulated import refined
-from .solutions import (
-    acceptable,
-    alternatives,
-    bounds,
-    capped,
-    select_solution,
-    solve_rounds,
-    solved,
-    typical_scale,
-)
+from .solutions import alternatives, bounds, capped, typical_scale
 
 __all__ = [
     "COSTS",
@@ -304,8 +292,8 @@ def estimate(
         model, support, lambda: model.default_priors(state.scales, constrained=False)
     )
 
-    found, df = _search(state, model, components, start, rounds, (logs, lower, upper), chain)
-    theta, ql, theta0 = found[select_solution([(t, q) for t, q, _ in found], df)]
+    found, df = search(state, model, components, start, rounds, (logs, lower, upper), chain)
+    theta, ql, theta0 = found[kept(state, model, found, df)]
     test = None
     if settle and settled_term(model):
         test = white_limit(model, ql, theta, log_params=logs,
@@ -356,44 +344,3 @@ def _components(state, model: Model, components) -> tuple[list[Component], bool]
         components.append(ForceKurtosis())
     chain = one_element(state, model, components)
     return (chain or components), bool(chain)
-
-
-def _search(state, model: Model, components, start, rounds: int, search, chain: bool):
-    """The solutions ``(theta, ql, start)`` from every start (:func:`_starts`; another
-    start may do where one fails: a white filter is degenerate) and the equations' degrees
-    of freedom; under a shaping filter with no acceptable solution, from the refined
-    pilots too.  ``search``: the log-scaled parameters and the search's bounds.
-
-    Raises
-    ------
-    HosidInputError
-        The first start's failure, when no start gives a solution.
-    """
-    logs, lower, upper = search
-    whitening = Spectrum(model).whitening
-
-    def one(theta0):
-        return solve_rounds(state, model, components, theta0, rounds, logs, lower, upper)
-
-    found, failure = solved(_starts(state, model, start, whitening, chain), one)
-    df = hansen(found[0][1], found[0][0])["df"] if found else 0
-    if whitening and start is None and found and not acceptable(found, df):
-        more = whitened_pilots(state, model, initial_theta(state, model), refine=True)
-        found += solved(more, one)[0]
-    if not found:
-        raise failure
-    return found, df
-
-
-def _starts(state, model: Model, start, whitening: bool, chain: bool) -> list[np.ndarray]:
-    """Where the search starts: ``start`` if given; under a shaping filter a pilot for
-    each way the filter and the oscillator may share the resonances; the one-element
-    chain's pilot; else the closed-form pilot.
-    """
-    if start is not None:
-        return [np.array(start, dtype=float)]
-    if whitening:
-        return whitened_pilots(state, model, initial_theta(state, model))
-    if chain:
-        return [chain_pilot(ChainState.of(state), System.single(model))]
-    return [pilot_estimate(state, model)]

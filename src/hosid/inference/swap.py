@@ -42,27 +42,41 @@ sampler's noise only (the drift's 90 % intervals pooled over the 80 filtered rec
 0.897, was 0.900).
 
 Why the trispectrum stays out of the equations, measured again with the current
-components (Laplace estimates of ``hosid.estimate`` with J4B, or J4A, added to the
-default equations; independent simulator, 4000 s, seeds of our own).  Under the broad
-filter at the ship's resonance the raw estimator lands on the swapped side in 3 of 16
-records (hosid's simulator: 1 of 16), the filter's damping ratio 0.09-0.11 against 0.25,
-and there the default equations prefer the swap (their J 7.7 at the swapped estimate,
-28.5 at the truth, on one record).  With J4B among the equations two of three swapped
-records came back (``zf`` 0.072 to 0.185, 0.12 to 0.28; J4A: 0.16, 0.27), the third
-partly (0.127 to 0.141), and two right ones stayed (within 0.04).  Under the narrow filter
-there (``zf`` 0.1, a half-power half-width of one frequency bin of the record's 102 s
-blocks) the same addition moved ``zf`` up by 0.03-0.05 and ``a2`` down by 0.016-0.053,
-up to 3 sd (J4A alike), on three records of three: the trispectral costs' Gaussian
-reference is built from bin values, and a peak one bin wide is where that is suspected
-to fail.  J4B's equations corrected by their mean on 8 records simulated at the current
-point do neither: one swapped record of three came part of the way (0.12 to 0.15), and a
-narrow filter's record still moved (``a2`` by -0.054).  A Gaussian reference exact for
-the window's leakage would let the trispectrum join the equations; until then it bounds
-them.
+components (Laplace estimates of ``hosid.estimate`` with J4B added to the default
+equations; independent simulator, 4000 s, seeds of our own).  Under the broad filter at
+the ship's resonance the raw estimator lands on the swapped side in 3 of 16 records
+(hosid's simulator: 1 of 16), the filter's damping ratio 0.09-0.11 against 0.25, and
+there the default equations prefer the swap (their J 7.7 at the swapped estimate, 28.5
+at the truth, on one record).  With J4B's Gaussian part built from bin values (eq 63)
+two of three swapped records came back, and under the narrow filter there (``zf`` 0.1,
+a half-power half-width of one frequency bin of the record's 102 s blocks) ``zf`` moved
+up by 0.03-0.05 and ``a2`` down by 0.016-0.053, up to 3 sd, on three records of three.
+With the exact Gaussian part (:mod:`hosid.components.gaussian_reference`, unbiased at
+the truth) one swapped record of three came back, and on 10 narrow-filter records ``a2``
+still moved by -0.027, -0.059 and -0.014 on three (by less than 0.011 on the others):
+the bias is not the reference's.  So it bounds the posterior and chooses the side.
+
+**The side.**  The equations' search may miss the true side altogether, its pilots all
+leading to the swapped solution.  The search therefore also starts from the
+:func:`mirror` of its best solution, and :func:`trispectral_side` keeps the side from
+which the trispectrum sees the other: J4B frozen at the truth's side rejects the swap
+(by -22 to -15 700 on 10 records where both were found), frozen at the swapped side it
+sees nothing (-0.0 to -0.3).  Measured with ``simulations=0`` on 20 broad-filter records
+of our own (independent simulator, 4000 s, the estimate with and without the mirror
+start): 5 estimates were on the swapped side, and the mirror start brought 2 of them to
+the true side (``zf`` 0.092 to 0.274 and 0.094 to 0.297, ``a1`` 0.170 to 0.028 and 0.177
+to 0.021; their own J 3.6 and 3.8 against 5.4 and 11.9); from the other 3 it went back
+to the swapped solution.  No right estimate changed side (the mirror's solutions there
+were the estimate again or swapped ones the trispectrum rejects); 5 moved to a
+neighbouring solution of smaller J, ``zf`` by at most 0.003.  Under the narrow filter
+(16 records) the mirror lies next to the estimate, and 12 estimates moved to such a
+neighbour, ``zf`` by at most 0.014 and ``a1`` by at most 0.006 (the Laplace sd of
+``zf`` there is 0.01-0.03).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -70,8 +84,9 @@ import numpy as np
 from ..components.polyspectral import J4
 from ..model.model import Model
 from .gmm import quasi_likelihood
+from .solutions import passes
 
-__all__ = ["FLOOR", "swap_guard"]
+__all__ = ["FLOOR", "mirror", "swap_guard", "trispectral_side"]
 
 #: The J4B term below which a draw is outside the guard (module docstring): -2 FLOOR is
 #: 100 for chi2(2) at the truth, a tail probability of 2e-22.
@@ -97,3 +112,69 @@ def swap_guard(est) -> Callable[[np.ndarray], np.ndarray] | None:
         return np.asarray(term(np.asarray(theta, dtype=float))) > FLOOR
 
     return admissible
+
+
+def _term(state, model: Model, theta: np.ndarray):
+    """J4B's quasi-log-likelihood with its weights frozen at ``theta``, or ``None``."""
+    try:
+        moments = J4(kind="B").prepare(state, model, theta)
+        return quasi_likelihood([moments], n_params=len(theta))
+    except ValueError:
+        return None
+
+
+def mirror(state, model: Model, theta: np.ndarray) -> np.ndarray | None:
+    r"""``theta`` with the oscillator's equivalent linear pair and the shaping filter's
+    traded (module docstring), a start on the other side of the exchange: the oscillator's
+    :math:`c = a_1 + n_1\sqrt{8/\pi}\sigma_{\dot x}` (eq 65) and
+    :math:`k = a_2 + 3n_2\sigma_x^2` become :math:`2\zeta_f\omega_f` and
+    :math:`\omega_f^2` (through :math:`a_1` and :math:`a_2`, the nonlinear coefficients
+    kept), the filter gets :math:`\omega_f = \sqrt k`, :math:`\zeta_f = c/2\sqrt k`, and
+    :math:`S_0\omega_f^4` is kept.  ``None`` for a model without a second-order filter,
+    ``a1`` and ``a2``, or an oscillator with :math:`k \le 0`.
+    """
+    if not all(model.has(p) for p in ("wf", "zf", "a1", "a2", "S0")):
+        return None
+    i = {n: model.index(n) for n in ("wf", "zf", "a1", "a2", "S0")}
+    sc = state.scales
+    c = float(model.equivalent_damping(theta, sc.sigma_v))
+    k = theta[i["a2"]]
+    if model.has("n2"):
+        k += 3.0 * theta[model.index("n2")] * sc.sigma_x**2
+    if k <= 0.0 or c <= 0.0:
+        return None
+    wf, zf = theta[i["wf"]], theta[i["zf"]]
+    out = np.array(theta, dtype=float)
+    out[i["a1"]] += 2.0 * zf * wf - c
+    out[i["a2"]] += wf**2 - k
+    out[i["wf"]], out[i["zf"]] = math.sqrt(k), c / (2.0 * math.sqrt(k))
+    out[i["S0"]] *= wf**4 / k**2
+    return out
+
+
+def trispectral_side(state, model: Model, found, index: int, df: int) -> int:
+    """The solution to keep among ``found`` (``(theta, ql, start)``) in place of
+    ``found[index]``: another acceptable one (its own Hansen test passes on ``df``
+    degrees of freedom) whose J4B term, frozen there, puts ``found[index]`` below
+    :data:`FLOOR` while the kept one's term does not put it there (the smallest own
+    :math:`J` of those); else ``index``.  The trispectrum sees the exchange from the
+    oscillator's true side only (module docstring), so the side it sees from is kept.
+    """
+    if not model.has("wf"):
+        return index
+    theta = found[index][0]
+    others = []
+    for j, (th, ql, _) in enumerate(found):
+        J = float(-2.0 * ql(th))
+        if j != index and not np.allclose(th, theta, rtol=0.02) and passes(J, df):
+            others.append((J, j))
+    own = _term(state, model, theta) if others else None
+    if own is None:
+        return index
+    better = []
+    for J, j in others:
+        th = found[j][0]
+        term = _term(state, model, th)
+        if term is not None and float(term(theta)) < FLOOR and float(own(th)) > FLOOR:
+            better.append((J, j))
+    return min(better)[1] if better else index
