@@ -42,6 +42,7 @@ One worker a record (``--workers``).
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -122,8 +123,11 @@ def measure(truth, *, records, duration, dt, simulator, seed, workers, variants)
     from hosid.model import Model
 
     todo = [(truth, i, duration, dt, simulator, seed, variants) for i in range(records)]
-    with ProcessPoolExecutor(workers) as ex:
-        res = list(ex.map(one, todo))
+    if workers == 1:
+        res = list(map(one, todo))
+    else:  # spawned: a forked child of a process that ran OpenMP kernels aborts
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
+            res = list(ex.map(one, todo))
     return {v: _summary(truth, [r[v] for r in res], Model.from_spec(MODEL)) for v in variants}
 
 

@@ -293,7 +293,11 @@ def estimate(
     )
 
     found, df = search(state, model, components, start, rounds, (logs, lower, upper), chain)
-    theta, ql, theta0 = found[kept(state, model, found, df)]
+    theta, ql, theta0 = (
+        kept(state, model, components, found, df, rounds, (logs, lower, upper))
+        if start is None
+        else found[0]
+    )
     test = None
     if settle and settled_term(model):
         test = white_limit(model, ql, theta, log_params=logs,

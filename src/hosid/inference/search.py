@@ -4,11 +4,16 @@ Every start (:func:`starts`) is solved by rounds of efficient GMM
 (:func:`hosid.inference.solutions.solve_rounds`).  Under a shaping filter the starts
 are the pilots of each way the filter and the oscillator may share the resonances
 (:func:`hosid.inference.pilot.whitened_pilots`), the refined pilots when none of their
-solutions passes its Hansen test, and the mirror of the best solution across the
-exchange of filter and oscillator (:func:`hosid.inference.swap.mirror`); the solution
-kept is the one :func:`hosid.inference.solutions.select_solution` keeps unless the
-trispectrum puts it on the wrong side of that exchange
-(:func:`hosid.inference.swap.trispectral_side`).
+solutions passes its Hansen test.  The solution kept is the one
+:func:`hosid.inference.solutions.select_solution` keeps unless the trispectrum puts it
+on the wrong side of the exchange of filter and oscillator
+(:func:`hosid.inference.swap.trispectral_side`); the search then solves once more from
+the kept solution's mirror across that exchange (:func:`hosid.inference.swap.mirror`)
+and takes that solution only where the trispectrum sees the kept one from it, never by
+its Hansen :math:`J` alone: with the filter below a ship-roll-like oscillator's
+resonance (``ship_below`` of ``analyses/excitation_study.py``, 10 records) the mirror's
+swapped solution had the smaller own :math:`J` on 3 records, and kept that way it took
+one record whole and split the posterior of two.
 """
 
 from __future__ import annotations
@@ -33,8 +38,7 @@ def search(state, model: Model, components, start, rounds: int, bounds, chain: b
     """The solutions ``(theta, ql, start)`` from every start (:func:`starts`; another
     start may do where one fails: a white filter is degenerate) and the equations' degrees
     of freedom; under a shaping filter with no acceptable solution, from the refined
-    pilots too, and from the mirror of the best solution (module docstring).
-    ``bounds``: the log-scaled parameters and the search's bounds.
+    pilots too.  ``bounds``: the log-scaled parameters and the search's bounds.
 
     Raises
     ------
@@ -52,20 +56,31 @@ def search(state, model: Model, components, start, rounds: int, bounds, chain: b
     if whitening and start is None and found and not acceptable(found, df):
         more = whitened_pilots(state, model, initial_theta(state, model), refine=True)
         found += solved(more, one)[0]
-    if whitening and start is None and found:
-        best = found[select_solution([(t, q) for t, q, _ in found], df)][0]
-        other = mirror(state, model, best)
-        if other is not None:
-            found += solved([np.clip(other, lower, upper)], one)[0]
     if not found:
         raise failure
     return found, df
 
 
-def kept(state, model: Model, found, df: int) -> int:
-    """The index of the solution the estimate keeps among ``found`` (module docstring)."""
+def kept(state, model: Model, components, found, df: int, rounds: int, bounds):
+    """The solution ``(theta, ql, start)`` the estimate keeps among ``found``
+    (:func:`hosid.inference.solutions.select_solution`, then
+    :func:`hosid.inference.swap.trispectral_side`), or, under a second-order shaping
+    filter, the solution from its :func:`hosid.inference.swap.mirror` when the
+    trispectrum sees the kept one from there (module docstring).  ``bounds``: the
+    log-scaled parameters and the search's bounds.
+    """
     index = select_solution([(t, q) for t, q, _ in found], df)
-    return trispectral_side(state, model, found, index, df)
+    best = found[trispectral_side(state, model, found, index, df)]
+    other = mirror(state, model, best[0])
+    if other is None:
+        return best
+    logs, lower, upper = bounds
+    start = np.clip(other, lower, upper)
+    mirrored, _ = solved(
+        [start], lambda th: solve_rounds(state, model, components, th, rounds, logs, lower, upper)
+    )
+    pair = [best, *mirrored]
+    return pair[trispectral_side(state, model, pair, 0, df)]
 
 
 def starts(state, model: Model, start, whitening: bool, chain: bool) -> list[np.ndarray]:
