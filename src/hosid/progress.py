@@ -62,6 +62,16 @@ class Stages:
             b.update(initial)
         return b
 
+    def relabel(self, name: str, *, grow: int = 0):
+        """Name stage ``name`` on the same count, its total grown by ``grow`` (work
+        found on the way); returns the bar, to ``update``.
+        """
+        b = self.bar
+        if grow:
+            b.total = (b.total or 0) + grow
+        b.set_description(f"{self.command}: {name}", refresh=True)
+        return b
+
     def close(self) -> None:
         """Remove the bar."""
         self.bar.close()

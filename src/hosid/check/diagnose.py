@@ -37,18 +37,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
-import xarray as xr
 
 from ..errors import HosidInputError
 from ..model.model import Model, get_term
 from ..model.terms import CANDIDATES
 from ..record import Record
-from ..verdicts import Check
-from .evidence import COORDINATES
+from .diagnosis_result import Diagnosis, Step
 from .measures import MeasureSpec
 from .model_check import ModelCheck, check_model
 from .selection import Round, weigh_round
@@ -63,116 +59,6 @@ MIN_REPLICATES = 8
 #: 5 %) that is 0.71 / 0.84 / 0.93 with R = 20 and 0.76 / 0.88 / 0.95 with R = 40 (the
 #: binomial law of the exceedances); each replicate costs one screening.
 DEFAULT_REPLICATES = 40
-
-
-@dataclass
-class Step:
-    """One named effect: the round that supported it, the fitted extended model, the gap
-    before and after, and the candidates the gap vetoed first.
-    """
-
-    effect: str
-    round: Round
-    check: ModelCheck
-    gap_before: float
-    vetoed: dict[str, str] = field(default_factory=dict)
-
-    @property
-    def gap_after(self) -> float:
-        """The extended model's gap."""
-        return self.check.total
-
-    def posterior(self) -> dict[str, float]:
-        """The named parameter's posterior (draws of the check): mean, sd, quantiles."""
-        param = COORDINATES[self.effect].param
-        s = self.check.sample[:, self.check.model.index(param)]
-        q = np.quantile(s, [0.05, 0.25, 0.5, 0.75, 0.95])
-        mean, sd = float(np.mean(s)), float(np.std(s, ddof=1))
-        return {
-            "param": param,
-            "mean": mean,
-            "sd": sd,
-            "z": mean / sd if sd > 0 else math.inf,
-            **dict(zip(("q05", "q25", "q50", "q75", "q95"), q.tolist(), strict=True)),
-        }
-
-
-@dataclass
-class Diagnosis:
-    """The result of :func:`diagnose`.
-
-    ``base`` and ``final`` are the first and last models' checks (``final`` is ``base``
-    when nothing is named); ``steps`` the named effects in order; ``rounds`` every round
-    of evidence (one more than the steps unless the candidates ran out);
-    ``candidates`` the first round's candidates with their screened gaps.
-    """
-
-    base: ModelCheck
-    candidates: dict[str, ModelCheck]
-    final: ModelCheck
-    decision: str
-    settings: dict[str, Any] = field(default_factory=dict)
-    failed: dict[str, str] = field(default_factory=dict)
-    steps: list[Step] = field(default_factory=list)
-    rounds: list[Round] = field(default_factory=list)
-    record_checks: list[Check] = field(default_factory=list)
-
-    @property
-    def named_effects(self) -> list[str]:
-        """Every named effect, in the order it was added."""
-        return [s.effect for s in self.steps]
-
-    @property
-    def named_effect(self) -> str | None:
-        """The first named effect (``None`` when nothing is named)."""
-        return self.steps[0].effect if self.steps else None
-
-    @property
-    def final_tree(self) -> xr.DataTree:
-        """The final model's emcee fit (for ``posterior.nc``).
-
-        Raises
-        ------
-        ValueError
-            If the final model was not fitted with emcee (``posterior="screen"``).
-        """
-        if self.final.tree is None:
-            raise ValueError("the final model was not fitted with emcee")
-        return self.final.tree
-
-    @property
-    def gaps(self) -> list[float]:
-        """The total gap of the base model and after each named effect, in order."""
-        return [self.base.total, *(s.gap_after for s in self.steps)]
-
-    @property
-    def gap_before(self) -> float:
-        """The base model's total gap."""
-        return self.base.total
-
-    @property
-    def gap_after(self) -> float:
-        """The final model's total gap."""
-        return self.final.total
-
-    def checks(self) -> list[Check]:
-        """The verdicts that travel with the result: the record checks the command ran,
-        the final fit's own (calibration, convergence) and the predictive check.
-        """
-        from ..output.results import attr
-        from .report import predictive_check
-
-        own = [] if self.final.tree is None else attr(self.final.tree, "checks") or []
-        own = [Check.from_dict(c) for c in own]  # a fit checks the record itself
-        seen = {c.name for c in own}
-        extra = [c for c in self.record_checks if c.name not in seen]
-        return [*extra, *own, predictive_check(self)]
-
-    def report(self) -> dict[str, Any]:
-        """The ``report.json`` content (infinite gaps stay ``inf``; see ``jsonable``)."""
-        from .report import diagnosis_report
-
-        return diagnosis_report(self)
 
 
 def _candidates(base: Model, candidates: Sequence[str] | None) -> list[str]:
@@ -299,56 +185,28 @@ def diagnose(
             keep_replicates=keep, settle=settle,
         )  # fmt: skip
 
-    from ..progress import bar as progress_bar
+    from ..progress import Stages
 
-    total = 2 + (len(cands) if candidate_gaps else 0)
-    bar = progress_bar("hosid diagnose", total=total, enabled=progress, unit="fit")
-
-    def stage(text, grow=0):  # the bar's label names the stage; the total grows by round
-        bar.total += grow
-        bar.set_description(f"hosid diagnose: {text}", refresh=True)
-
-    steps: list[Step] = []
-    rounds: list[Round] = []
-    gaps_of: dict[str, ModelCheck] = {}
+    stages = Stages("hosid diagnose", enabled=progress)
+    bar = stages.stage(f"fit base ({posterior})", unit="fit",
+                       total=2 + (len(cands) if candidate_gaps else 0))  # fmt: skip
     failed: dict[str, str] = {}
     try:
-        stage(f"fit base ({posterior})")
-        current, base_note = _base_check(check, base_model, path_ss, posterior)
-        base_chk = current
+        base_chk, base_note = _base_check(check, base_model, path_ss, posterior)
         bar.update()
         for c in cands:  # the fit may have added an excitation term that covers one
-            if c not in current.model.candidates:
-                failed[c] = f"the fitted model ({' + '.join(current.model.names)}) covers it"
+            if c not in base_chk.model.candidates:
+                failed[c] = f"the fitted model ({' + '.join(base_chk.model.names)}) covers it"
         cands = [c for c in cands if c not in failed]
         limit = min(limit, len(cands))
-        remaining = list(cands)
-        while remaining and len(steps) < limit:
-            stage(f"round {len(rounds) + 1}: weigh {len(remaining)} candidates", grow=1)
-            rnd = weigh_round(
-                record, current.model, remaining, start=current.theta_hat, alpha=alpha,
-                family=len(cands), replicates=current.replicates, starts=current.draws,
-            )  # fmt: skip
-            rounds.append(rnd)
-            bar.update()
-            if len(rounds) == 1:
-                failed.update(rnd.failed)
-                for c in cands if candidate_gaps else ():
-                    stage(f"gap + {c} (screen)")
-                    try:
-                        gaps_of[c] = check(current.model.extended(c), cand_ss, "screen", False)
-                    except HosidInputError as exc:
-                        failed.setdefault(c, str(exc))
-                    bar.update()
-            step = _step(rnd, current, check, (path_ss, posterior), stage, bar)
-            if step is None:
-                break
-            steps.append(step)
-            remaining.remove(step.effect)
-            current = step.check
+        steps, rounds, gaps_of = _rounds(
+            record, base_chk, cands, limit, alpha, check, (path_ss, posterior), stages,
+            cand_ss if candidate_gaps else None, failed,
+        )  # fmt: skip
         bar.update(max(0, bar.total - bar.n))
     finally:
-        bar.close()
+        stages.close()
+    current = steps[-1].check if steps else base_chk
     settings = {
         "base": base_note, "replicates": int(replicates), "alpha": float(alpha),
         "threshold": float(threshold), "max_effects": limit, "posterior": posterior,
@@ -362,13 +220,45 @@ def diagnose(
     return diag
 
 
-def _step(rnd: Round, current: ModelCheck, check, how, stage, bar) -> Step | None:
+def _rounds(record, current: ModelCheck, cands, limit, alpha, check, how, stages, gap_seed,
+            failed):  # fmt: skip
+    """The rounds from the base model's check ``current`` (module docstring), at most
+    ``limit`` effects named: the steps, every round and, from ``gap_seed`` (``None``: not
+    measured), the first round's candidates' gaps; the candidates that fail go to
+    ``failed``.
+    """
+    steps: list[Step] = []
+    rounds: list[Round] = []
+    gaps_of: dict[str, ModelCheck] = {}
+    remaining = list(cands)
+    while remaining and len(steps) < limit:
+        bar = stages.relabel(f"round {len(rounds) + 1}: weigh {len(remaining)} candidates", grow=1)
+        rnd = weigh_round(
+            record, current.model, remaining, start=current.theta_hat, alpha=alpha,
+            family=len(cands), replicates=current.replicates, starts=current.draws,
+        )  # fmt: skip
+        rounds.append(rnd)
+        bar.update()
+        if len(rounds) == 1:
+            failed.update(rnd.failed)
+            if gap_seed is not None:
+                gaps_of = _candidate_gaps(check, current.model, cands, gap_seed, stages, failed)
+        step = _step(rnd, current, check, how, stages)
+        if step is None:
+            break
+        steps.append(step)
+        remaining.remove(step.effect)
+        current = step.check
+    return steps, rounds, gaps_of
+
+
+def _step(rnd: Round, current: ModelCheck, check, how, stages) -> Step | None:
     """The round's step: its first supported candidate whose fit (``check(model, *how)``)
     :func:`_veto` lets pass, or ``None``; the vetoes go to ``rnd.vetoed``.
     """
     rnd.vetoed = {}
     for c in rnd.supported():
-        stage(f"fit + {c} ({how[1]})", grow=1)
+        bar = stages.relabel(f"fit + {c} ({how[1]})", grow=1)
         try:
             new = check(current.model.extended(c), *how)
             why = _veto(current, new, c)
@@ -379,6 +269,21 @@ def _step(rnd: Round, current: ModelCheck, check, how, stage, bar) -> Step | Non
             return Step(c, rnd, new, current.total, dict(rnd.vetoed))
         rnd.vetoed[c] = why
     return None
+
+
+def _candidate_gaps(check, model, cands, ss, stages, failed) -> dict[str, ModelCheck]:
+    """Every candidate's gap (screened quasi-posterior; report only); a failure is noted
+    in ``failed`` unless it holds one already.
+    """
+    gaps = {}
+    for c in cands:
+        bar = stages.relabel(f"gap + {c} (screen)")
+        try:
+            gaps[c] = check(model.extended(c), ss, "screen", False)
+        except HosidInputError as exc:
+            failed.setdefault(c, str(exc))
+        bar.update()
+    return gaps
 
 
 def _base_check(check, model, ss, posterior):

@@ -1,6 +1,6 @@
 """The content of a diagnosis: its ``report.json`` dictionary and its one-paragraph verdict.
 
-:func:`diagnosis_report` is :meth:`hosid.check.diagnose.Diagnosis.report`;
+:func:`diagnosis_report` is :meth:`hosid.check.diagnosis_result.Diagnosis.report`;
 :func:`decision_text` the sentence :func:`hosid.check.diagnose.diagnose` stores as
 ``decision``.  The files are written by :mod:`hosid.output.diagnosis`.
 """
@@ -16,7 +16,7 @@ from ..verdicts import Check, overall
 from .evidence import COORDINATES
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .diagnose import Diagnosis, Step
+    from .diagnosis_result import Diagnosis, Step
     from .selection import Round
 
 __all__ = ["decision_text", "diagnosis_report"]

@@ -55,6 +55,7 @@ from ..spectra.windows import get_window
 from ..state import RecordState
 from ._kernels import contract, products
 from .base import Moments, feature_ffts, restoration, u_pseudovalues
+from .bin_reference import BinReference
 from .excitation import Excitation
 from .gaussian_reference import GaussianReference
 from .spectral import default_band
@@ -133,91 +134,34 @@ class J4:
         dom = trispectral_domain(k_max, self.domain)
         th0 = np.asarray(pilot, dtype=float)
         nd = model.n_drift
-        damp = [i for i, t in enumerate(model.drift_terms) if t.variable == "v"]
         s2, _ = restoration(state, model, th0)
         Y = feature_ffts(state, model, s2, np.arange(k_max + 1))  # (F, B, K), F = 1 + nd
-        Ys = np.concatenate([np.conj(Y[:, :, :0:-1]), Y], axis=2)  # signed bins -K..K
-        idx = dom + k_max
+        Ys = np.ascontiguousarray(np.concatenate([np.conj(Y[:, :, :0:-1]), Y], axis=2))
+        idx = np.ascontiguousarray(dom + k_max, dtype=np.int64)  # signed bins -K..K
         B = Y.shape[1]
-        T = L.T
-        c8 = 8 * math.pi**3 * T
+        c8 = 8 * math.pi**3 * L.T
         lam0 = np.concatenate([[1.0], th0[:nd]])
-        Ys = np.ascontiguousarray(Ys)
-        idx = np.ascontiguousarray(idx, dtype=np.int64)
         q, dq = products(Ys, idx, lam0, c8)  # (B, n_t), (B, n_t, F - 1)
-
         exc = Excitation(model, th0, sc.sigma_v, sc.sigma_x)
-        delta = np.stack(
-            [
-                state.window.delta_bins(dom[:, a] + dom[:, b], L.M, T)
-                for a, b in ((0, 1), (0, 2), (1, 2))
-            ],
-            axis=1,
-        )
-        omega = np.arange(k_max + 1) * L.d_omega
-        absk = np.abs(dom[:, :3])
-        pairs = ((0, 2, 0), (2, 1, 1), (0, 1, 2))  # s_a s_b Delta_c of G_t
-        k2 = state.window.k2
-        R = np.einsum("ibk,jbk->kij", Y, Y.conj()).real / (B * 2 * math.pi * T)  # Va tensors
-
-        def level(theta):
-            """Spectral level s on the bins 0..K, ``(..., K + 1)``."""
-            th = np.asarray(theta, dtype=float)
-            if self.kind == "A":
-                return exc.S0(th)[..., None] * exc.shape(omega, th)
-            lam = np.concatenate([np.ones((*th.shape[:-1], 1)), th[..., :nd]], axis=-1)
-            return np.einsum("...i,kij,...j->...k", lam, R, lam) / k2
-
-        def gauss(s):
-            return sum(s[..., absk[:, a]] * s[..., absk[:, b]] * delta[:, c] for a, b, c in pairs)
-
-        exact = None
         if self.kind == "B" and self.reference == "exact":
-            reach = max(d for d in range(9) if d == 0 or state.window.rho(d, L.M) > 1e-8)
-            exact = GaussianReference(Ys, dom, reach, c8)
-
-        def reference(theta):
-            if exact is None:
-                return gauss(level(theta))
-            th = np.asarray(theta, dtype=float)
-            return exact.values(np.concatenate([[1.0], th[:nd]]))
+            ref = _Exact(state, Ys, dom, c8, nd)
+        else:
+            ref = BinReference(self.kind, state, exc, dom, Y, nd)
 
         # directions and frozen per-block weights d_tbj
-        dirs = list(damp) + ([exc.i_S0] if self.kind == "A" else [])
+        dirs = [i for i, t in enumerate(model.drift_terms) if t.variable == "v"]
         if self.kind == "A":
-            dirs += list(exc.shape_indices)
-        G0 = reference(th0)
-        d = self._directions(dirs, th0, nd, dq, reference)
+            dirs += [exc.i_S0, *exc.shape_indices]
+        d = self._directions(dirs, th0, nd, dq, ref.values)
         if self.form == "scaled":
             d = d / _null_variance(k_max, self.domain, state.window.name, L.M)[None, :, None]
-        dbar = d.mean(axis=0)
-        U = B / (B - 1)
         # U-statistic over block pairs: each block weighted by conj(dbar - d_b / B)
-        wts = U * np.conj(dbar[None] - d / B)  # (B, n_t, J)
+        wts = B / (B - 1) * np.conj(d.mean(axis=0)[None] - d / B)  # (B, n_t, J)
         K_all = contract(Ys, idx, np.ascontiguousarray(wts), c8)
-        e = wts.mean(axis=0)  # weights of the Gaussian term
         # jackknife pseudo-values: the projection alone (each block's residual times the
         # other blocks' mean weights) drops the degenerate part, which off the planes
         # w_i + w_j = 0 is not small (E[-2 l] of the 3 J4A equations at the truth: 4.8)
-        if exact is not None:  # the Gaussian part is a U-statistic over block triples
-            quartic, psi = exact.statistic(lam0, np.conj(d))
-            u, K_all = u_pseudovalues(d, q) - psi, K_all - quartic
-        else:
-            u = u_pseudovalues(d, q - G0)
-        if exact is None and self.kind == "B":  # delta method: G depends on the blocks through Va
-            Xb = np.tensordot(lam0, Y, 1)
-            sb = np.abs(Xb) ** 2 / (2 * math.pi * T * k2)  # per-block level (B, K + 1)
-            s0 = sb.mean(axis=0)
-            for a in range(len(dirs)):
-                grad = self._gauss_grad(s0, absk, delta, pairs, np.real(e[:, a]))
-                u[:, a] -= (sb - s0) @ grad
-
-        # sum_t e_tj G_t(s) = s^T C_j s with C_j[a, b] = sum of e_tj Delta over the
-        # triples whose Gaussian term pairs the bins a and b
-        C = np.zeros((len(dirs), k_max + 1, k_max + 1))
-        for a, b, c in pairs if exact is None else ():
-            for j in range(len(dirs)):
-                np.add.at(C[j], (absk[:, a], absk[:, b]), np.real(e[:, j]) * delta[:, c])
+        u, K_all, rest = ref.split(d, q, wts.mean(axis=0), th0, K_all)
 
         def mean(theta):
             th = np.asarray(theta, dtype=float)
@@ -225,10 +169,7 @@ class J4:
             l2 = lam[..., :, None] * lam[..., None, :]
             l4 = l2[..., :, :, None, None] * l2[..., None, None, :, :]
             main = np.tensordot(l4, K_all, axes=([-4, -3, -2, -1], [1, 2, 3, 4]))
-            if exact is not None:  # its Gaussian part is in K_all
-                return main
-            s = level(th)
-            return main - np.einsum("...a,jab,...b->...j", s, C, s)
+            return main if rest is None else main - rest(th)
 
         labels = tuple(f"{self.name} d/d{model.param_names[i]}" for i in dirs)
         return Moments(
@@ -264,11 +205,22 @@ class J4:
             d[:, :, a] = (dq[:, :, i] - dG) if i < nd else -dG
         return d
 
-    @staticmethod
-    def _gauss_grad(s, absk, delta, pairs, e):
-        """Gradient of ``sum_t e_t G_t(s)`` with respect to the levels ``s``."""
-        grad = np.zeros_like(s)
-        for a, b, c in pairs:
-            np.add.at(grad, absk[:, a], e * s[absk[:, b]] * delta[:, c])
-            np.add.at(grad, absk[:, b], e * s[absk[:, a]] * delta[:, c])
-        return grad
+
+class _Exact:
+    """J4B's exact Gaussian part (:class:`~hosid.components.gaussian_reference.GaussianReference`)
+    at the parameters, with :class:`~hosid.components.bin_reference.BinReference`'s
+    ``values`` and ``split``: its products over distinct blocks are in the quartic tensor.
+    """
+
+    def __init__(self, state: RecordState, Ys: np.ndarray, dom: np.ndarray, c8: float, nd: int):
+        L = state.layout
+        reach = max(d for d in range(9) if d == 0 or state.window.rho(d, L.M) > 1e-8)
+        self.g, self.nd = GaussianReference(Ys, dom, reach, c8), nd
+
+    def values(self, theta) -> np.ndarray:
+        return self.g.values(np.concatenate([[1.0], np.asarray(theta, float)[: self.nd]]))
+
+    def split(self, d, q, e, th0, K_all):
+        lam0 = np.concatenate([[1.0], np.asarray(th0, float)[: self.nd]])
+        quartic, psi = self.g.statistic(lam0, np.conj(d))
+        return u_pseudovalues(d, q) - psi, K_all - quartic, None

@@ -274,15 +274,7 @@ def estimate(
               "support": support}  # fmt: skip
         return routed(record, model, components, start=start, rounds=rounds, **kw)
     model = Model.from_spec(model)
-    checks = list(checks or [])
-    if not isinstance(record, RecordState):
-        checks = checks or check_record(record, unit=unit)
-        reject_failures(checks, force=force)
-    state = (
-        record
-        if isinstance(record, RecordState)
-        else prepare_state(record, model, block_seconds=block_seconds)
-    )
+    state, checks = _checked_state(record, model, checks, force, unit, block_seconds)
     settle = settle and start is None
     model, notes = excitation_for(state, model, band_limit=settle)
     asked = components
@@ -291,7 +283,6 @@ def estimate(
     lower, upper = bounds(
         model, support, lambda: model.default_priors(state.scales, constrained=False)
     )
-
     found, df = search(state, model, components, start, rounds, (logs, lower, upper), chain)
     theta, ql, theta0 = (
         kept(state, model, components, found, df, rounds, (logs, lower, upper))
@@ -302,11 +293,10 @@ def estimate(
     if settle and settled_term(model):
         test = white_limit(model, ql, theta, log_params=logs,
                            scale=typical_scale(model, state, theta))  # fmt: skip
-        if test["p_value"] >= test["level"]:
-            white = model.without_term(test["effect"])
+        if test["p_value"] >= test["level"]:  # the white force it nests: estimated instead
             est = estimate(
-                record, white, asked, block_seconds=block_seconds, settle=False,
-                force=force, unit=unit, checks=checks, simulations=simulations,
+                record, model.without_term(test["effect"]), asked, block_seconds=block_seconds,
+                settle=False, force=force, unit=unit, checks=checks, simulations=simulations,
                 progress=progress,
             )  # fmt: skip
             est.notes.append(settled_note(test, kept=False))
@@ -321,15 +311,36 @@ def estimate(
         notes += done
         if model.has("rate") and done:  # the other solutions are of the unshifted equations
             solutions = [theta]
+    est = _at_mode(state, model, theta, ql, solutions, upper - lower)
+    est.pilot, est.checks, est.notes, est.excitation_test = theta0, checks, notes, test
+    return est
+
+
+def _checked_state(record, model: Model, checks, force: bool, unit: str, block_seconds):
+    """The record's state and checks (:func:`hosid.screen.check_record`, unless given;
+    a failure rejects the record unless ``force``); a state is taken as it is.
+    """
+    checks = list(checks or [])
+    if isinstance(record, RecordState):
+        return record, checks
+    checks = checks or check_record(record, unit=unit)
+    reject_failures(checks, force=force)
+    return prepare_state(record, model, block_seconds=block_seconds), checks
+
+
+def _at_mode(state, model: Model, theta, ql, solutions, width) -> Estimate:
+    """The estimate at the mode ``theta`` of ``ql``: its Laplace covariance capped by the
+    search's ``width``, the velocity sd with the restoration, Hansen's test, and the
+    other ``solutions`` the quasi-likelihood does not rule out.
+    """
     J_best = float(-2.0 * ql(theta))
-    cov = capped(ql.laplace(theta, typical_scale(model, state, theta)), upper - lower)
+    cov = capped(ql.laplace(theta, typical_scale(model, state, theta)), width)
     s2, _ = restoration(state, model, theta)
     sigma_v = math.sqrt(state.scales.sigma_v**2 + s2)
     others = alternatives(ql, theta, solutions, cov, J_best)
     return Estimate(
-        model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta0, checks, notes, others,
-        test,
-    )  # fmt: skip
+        model, state, theta, ql, cov, sigma_v, hansen(ql, theta), theta, alternatives=others
+    )
 
 
 def _components(state, model: Model, components) -> tuple[list[Component], bool]:

@@ -201,33 +201,15 @@ def monitor(
     settings = _settings(source, layout, analysis, opts, seed)
     out = Path(out)
     echo(f"hosid monitor: {describe(layout)}" + (f", {n_windows} windows" if n_windows else ""))
-    meta: list[tuple[int, float, float, str]] = []
-    rows: dict[str, dict] = {}
     result = MonitorResult(out, layout, Tracks.empty(layout))
-
-    def publish() -> None:
-        result.tracks = Tracks.from_rows(meta, rows, layout, opts["model"])
-        result.changes = result.tracks.changes(
-            alpha=alpha, level=level, baseline=base, baseline_windows=baseline_windows, seed=seed
-        )
-        with staged(out, command="hosid monitor", keep=()) as stage:
-            result.files = result.tracks.write(
-                stage, result.changes, settings=settings, alpha=alpha, level=level
-            )
-        result.files = [out / p.name for p in result.files]
-
-    def on_row(row: dict) -> None:
-        rows[row["task"]] = row
-        if follow:
-            i, start, end, _ = next(m for m in meta if m[3] == row["task"])
-            echo(f"window {i}: {start:g}-{end:g} s {row.get('status')} " + _brief(row))
-            publish()
-
+    tables = _Tables(result, opts["model"], settings, echo if follow else None,
+                     dict(alpha=alpha, level=level, baseline=base,
+                          baseline_windows=baseline_windows, seed=seed))  # fmt: skip
     with locked_dir(out, command="hosid monitor"):
         _check_settings(out, settings)
         write_atomic(out / SETTINGS, json.dumps({"settings": settings}, indent=1) + "\n")
         tasks = _tasks(
-            source, layout, analysis, opts, seed, meta, follow=follow, poll=poll, stop=stop
+            source, layout, analysis, opts, seed, tables.meta, follow=follow, poll=poll, stop=stop
         )
         if n_windows is not None:
             tasks = _Sized(tasks, n_windows)
@@ -239,16 +221,50 @@ def monitor(
                 scheduler=scheduler,
                 progress=progress,
                 label="hosid monitor",
-                on_row=on_row,
+                on_row=tables.add,
             )
             result.ran, result.skipped = batch.ran, batch.skipped
         except KeyboardInterrupt:
             if not follow:
                 raise
             echo("hosid monitor: stopped; the finished windows are kept")
-        publish()
+        tables.publish()
     result.seconds = time.perf_counter() - t0
     return result
+
+
+class _Tables:
+    """The monitor's tables as its windows finish: ``meta`` (window number, start, end,
+    task) filled by the task generator, each finished window's row added; ``publish``
+    rewrites the tracks and changes into the result's folder (staged, never half
+    written), after every window when ``echo`` reports them (``--follow``).
+    """
+
+    def __init__(self, result: MonitorResult, model, settings, echo, test: Mapping):
+        self.result, self.model, self.settings, self.echo, self.test = (
+            result, model, settings, echo, dict(test)
+        )  # fmt: skip
+        self.meta: list[tuple[int, float, float, str]] = []
+        self.rows: dict[str, dict] = {}
+
+    def publish(self) -> None:
+        """Tracks, changes and their files from the rows so far."""
+        r, t = self.result, self.test
+        r.tracks = Tracks.from_rows(self.meta, self.rows, r.layout, self.model)
+        r.changes = r.tracks.changes(**t)
+        with staged(r.out, command="hosid monitor", keep=()) as stage:
+            files = r.tracks.write(
+                stage, r.changes, settings=self.settings, alpha=t["alpha"], level=t["level"]
+            )
+        r.files = [r.out / p.name for p in files]
+
+    def add(self, row: dict) -> None:
+        """A finished window's row (reported and published when following)."""
+        self.rows[row["task"]] = row
+        if self.echo is not None:
+            i, start, end, _ = next(m for m in self.meta if m[3] == row["task"])
+            self.echo(f"window {i}: {start:g}-{end:g} s {row.get('status')} " + _brief(row))
+            self.publish()
 
 
 def _brief(row: Mapping) -> str:

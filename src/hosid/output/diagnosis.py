@@ -2,7 +2,7 @@ r"""The report of :func:`hosid.check.diagnose.diagnose`: figures, ``report.json`
 
 :func:`write_diagnosis` writes into a directory
 
-- ``report.json``: :meth:`hosid.check.diagnose.Diagnosis.report` (infinite gaps as
+- ``report.json``: :meth:`hosid.check.diagnosis_result.Diagnosis.report` (infinite gaps as
   ``null``);
 - ``evidence.png`` (:func:`evidence_figure`): every round's evidence for every
   candidate, the Wald :math:`z` and the quasi-likelihood ratio's calibrated p-value,
