@@ -163,19 +163,7 @@ def run(
     p = len(modes[0])
     logs = np.zeros(p, dtype=bool)
     logs[list(log_params)] = True
-
-    def to_theta(u):
-        th = np.array(u, dtype=float, copy=True)
-        th[..., logs] = np.exp(th[..., logs])
-        return th
-
-    def target(u):
-        u = np.atleast_2d(u)
-        out = log_prob(to_theta(u))
-        out[:, 0] = out[:, 0] + np.sum(u[:, logs], axis=1)  # Jacobian of exp
-        out[:, 0] = np.where(np.isfinite(out[:, 0]), out[:, 0], -np.inf)
-        return out
-
+    target = _Unconstrained(log_prob, logs)
     sampler = emcee.EnsembleSampler(
         n_walkers, p, target, moves=_moves(kde, mirror), vectorize=True, backend=backend
     )
@@ -195,6 +183,34 @@ def run(
     finally:
         if own:
             bar.close()
+    return _chain(sampler, target.theta, n_walkers, n_blobs)
+
+
+class _Unconstrained:
+    r"""``log_prob`` in the sampler's coordinates :math:`u`: the parameters ``logs`` in
+    their logarithm (:math:`\theta = e^u`, the Jacobian :math:`\sum u` added), a
+    non-finite log posterior as :math:`-\infty`.
+    """
+
+    def __init__(self, log_prob: Callable[[np.ndarray], np.ndarray], logs: np.ndarray):
+        self.log_prob, self.logs = log_prob, logs
+
+    def theta(self, u) -> np.ndarray:
+        """The natural coordinates of ``u``."""
+        th = np.array(u, dtype=float, copy=True)
+        th[..., self.logs] = np.exp(th[..., self.logs])
+        return th
+
+    def __call__(self, u) -> np.ndarray:
+        u = np.atleast_2d(u)
+        out = self.log_prob(self.theta(u))
+        out[:, 0] = out[:, 0] + np.sum(u[:, self.logs], axis=1)  # Jacobian of exp
+        out[:, 0] = np.where(np.isfinite(out[:, 0]), out[:, 0], -np.inf)
+        return out
+
+
+def _chain(sampler, to_theta, n_walkers: int, n_blobs: int) -> Chain:
+    """The sampled chain after its burn-in, in natural coordinates (``to_theta``)."""
     done = sampler.iteration
     burn = _burn(sampler, done)
     u = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
