@@ -26,6 +26,7 @@ import argparse
 import csv
 import json
 import math
+import multiprocessing
 import os
 import sys
 import time
@@ -35,6 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from hosid.model import PAPER_PARAMS
+
+#: workers are spawned: a forked child of a process that ran OpenMP kernels aborts
+SPAWN = multiprocessing.get_context("spawn")
 
 PAPER = PAPER_PARAMS
 LINEAR = {"a1": 3.0, "a2": 25.0, "S0": 100.0}
@@ -238,7 +242,7 @@ def main(argv=None) -> int:
             if not append:
                 w.writeheader()
             if a.jobs > 1:
-                ex = ProcessPoolExecutor(max_workers=a.jobs)
+                ex = ProcessPoolExecutor(max_workers=a.jobs, mp_context=SPAWN)
                 results = ex.map(run_one, jobs)
             else:  # in this process (also when the module is loaded by a test)
                 ex, results = None, map(run_one, jobs)

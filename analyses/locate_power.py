@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import multiprocessing
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -48,6 +49,9 @@ from hosid.check.locate import extended, locate  # noqa: E402
 from hosid.model.chain import simulate_chain  # noqa: E402
 from hosid.model.chain_information import bound_from_state  # noqa: E402
 from hosid.model.system import System  # noqa: E402
+
+#: workers are spawned: a forked child of a process that ran OpenMP kernels aborts
+SPAWN = multiprocessing.get_context("spawn")
 
 RESULTS = HERE / "results"
 SEED = 20261127
@@ -141,7 +145,7 @@ def main(argv=None) -> list[dict]:
                 label = base.elements[HIDDEN[case]].label
                 values[f"n2[{label}]"] = strength * sds[case]
             jobs += [(case, strength, i, values, s, args.measured) for i, s in enumerate(seq)]
-    with ProcessPoolExecutor(args.workers) as pool:
+    with ProcessPoolExecutor(args.workers, mp_context=SPAWN) as pool:
         rows = list(pool.map(one, jobs))
     write(rows, sds, args, time.perf_counter() - t0)
     return rows

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import multiprocessing
 import sys
 import time
 from collections.abc import Sequence
@@ -49,6 +50,9 @@ from hosid.monitor.changes import overlap_correlation, share_after  # noqa: E402
 from hosid.monitor.joint import joint_changes  # noqa: E402
 from hosid.monitor.source import Piece  # noqa: E402
 from hosid.monitor.windows import Layout, windows  # noqa: E402
+
+#: workers are spawned: a forked child of a process that ran OpenMP kernels aborts
+SPAWN = multiprocessing.get_context("spawn")
 
 RESULTS = HERE / "results" / "monitor"
 #: a2's relative step of the Done-when, and the power curve's steps in bound-sd per window
@@ -189,7 +193,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args(argv)
     todo = [row for row in design(args.records) if not args.cases or row[0] in args.cases]
-    with ProcessPoolExecutor(args.workers) as pool:
+    with ProcessPoolExecutor(args.workers, mp_context=SPAWN) as pool:
         futures = [
             pool.submit(one_case, *row[:4], args.efficiency, row[4], args.sim_duration)
             for row in todo

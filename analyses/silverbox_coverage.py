@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -43,6 +44,9 @@ from silverbox import RESULTS, data_file, reference
 from hosid.datasets import load_silverbox
 from hosid.inference.estimate import estimate
 from hosid.record import Record
+
+#: workers are spawned: a forked child of a process that ran OpenMP kernels aborts
+SPAWN = multiprocessing.get_context("spawn")
 
 PROFILES = ("flat", "measured")
 Z50, Z90 = 0.6745, 1.6449
@@ -178,7 +182,7 @@ def main(argv=None) -> dict:
     lines, amps = excited_lines(U)
     jobs = [(prof, k, args.seed, lines, amps, sb.period, dt, p, truth)
             for prof, n in zip(PROFILES, args.records, strict=True) for k in range(n)]  # fmt: skip
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+    with ProcessPoolExecutor(max_workers=args.workers, mp_context=SPAWN) as pool:
         rows = list(pool.map(_one, jobs))
     # what makes the file's own n2 fall short: its input, then its phases alone
     X = np.fft.rfft(U - U.mean(axis=1, keepdims=True), axis=1)
