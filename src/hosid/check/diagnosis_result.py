@@ -54,7 +54,7 @@ class Step:
 
 @dataclass
 class Diagnosis:
-    """The result of :func:`diagnose`.
+    """The result of :func:`~hosid.check.diagnose.diagnose`.
 
     ``base`` and ``final`` are the first and last models' checks (``final`` is ``base``
     when nothing is named); ``steps`` the named effects in order; ``rounds`` every round
