@@ -17,11 +17,9 @@ Run ``python benchmarks/chain_fits.py [--quick]``; prints the table and writes
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +27,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "analyses"))
 
 from chain_bound import system
+from fit_timing import evaluation, timed_fit
 
-from hosid.inference import estimate, fit
+from hosid.inference import estimate
 from hosid.model import PAPER_PARAMS, simulate
 from hosid.model.chain import simulate_chain
 
@@ -51,33 +50,15 @@ def _record(name: str, measured: str, duration: float):
     return simulate_chain(s, duration=duration, dt=0.02, rng=rng, measured=measured), s
 
 
-def _evaluation(record, structure) -> float:
-    """Seconds of one quasi-likelihood evaluation for 32 walkers (best of 20)."""
-    est = estimate(record, structure)
-    rng = np.random.default_rng(0)
-    theta = est.theta + 1e-3 * np.abs(est.theta) * rng.standard_normal((32, est.theta.size))
-    best = np.inf
-    for _ in range(20):
-        t0 = time.perf_counter()
-        est.ql(theta)
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def main(quick: bool = False) -> str:
     duration = 400.0 if quick else 2000.0
     simulate(PAPER_PARAMS, duration=10.0, rng=np.random.default_rng(0))  # compile
     rows = []
     for label, name, measured in CASES:
         record, structure = _record(name, measured, duration)
-        t0 = time.perf_counter()
-        tree = fit(record, model=structure, seed=1, progress=False, with_map=False,
-                   n_steps=200 if quick else None)  # fmt: skip
-        seconds = time.perf_counter() - t0
-        timings = json.loads(tree.attrs["timings_json"])
-        steps = json.loads(tree.attrs["sampler_json"])["steps"]
+        tree, seconds, timings, steps = timed_fit(record, structure, quick)
         n_var = len(tree["posterior"].data_vars)
-        ev = _evaluation(record, structure)
+        ev = evaluation(estimate(record, structure))
         rows.append((label, seconds, timings["estimate"], timings["sampling"], steps, ev, n_var))
         print(f"{label}: {seconds:.1f} s ({steps} steps)", flush=True)
     base = rows[0]

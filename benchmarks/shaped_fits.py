@@ -19,15 +19,14 @@ Run ``python benchmarks/shaped_fits.py [--quick]``; prints the table and writes
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
-import time
 from pathlib import Path
 
 import numpy as np
+from fit_timing import best_seconds, evaluation, timed_fit
 
-from hosid.inference import estimate, fit
+from hosid.inference import estimate
 from hosid.model import simulate
 
 SEED = 2024
@@ -47,39 +46,18 @@ def _record(force, duration: float):
     return simulate(params, duration=duration, dt=0.1, rng=np.random.default_rng(SEED))
 
 
-def _seconds(fn, repeat: int = 1) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
-def _evaluation(est) -> float:
-    """Seconds of one quasi-likelihood evaluation for 32 walkers (best of 20)."""
-    rng = np.random.default_rng(0)
-    theta = est.theta + 1e-3 * np.abs(est.theta) * rng.standard_normal((32, est.theta.size))
-    return _seconds(lambda: est.ql(theta), repeat=20)
-
-
 def main(quick: bool = False) -> str:
     duration = 2000.0 if quick else 4000.0
     simulate(SHIP, duration=10.0, dt=0.1, rng=np.random.default_rng(0))  # compile
     rows = []
     for label, force, model in CASES:
         record = _record(force, duration)
-        t0 = time.perf_counter()
-        tree = fit(record, model=model, seed=1, progress=False, with_map=False,
-                   n_steps=200 if quick else None)  # fmt: skip
-        seconds = time.perf_counter() - t0
-        timings = json.loads(tree.attrs["timings_json"])
-        steps = json.loads(tree.attrs["sampler_json"])["steps"]
+        _, seconds, timings, steps = timed_fit(record, model, quick)
         est = estimate(record, model)
-        bare = _seconds(lambda r=record, m=model: estimate(r, m, simulations=0))
+        bare = best_seconds(lambda r=record, m=model: estimate(r, m, simulations=0))
         kept = "wf" in est.model.param_names
         rows.append((label, kept, seconds, timings["estimate"], bare, timings["sampling"], steps,
-                     _evaluation(est)))  # fmt: skip
+                     evaluation(est)))  # fmt: skip
         print(f"{label}: {seconds:.1f} s ({steps} steps)", flush=True)
     base = rows[0]
     lines = [
